@@ -1,0 +1,338 @@
+//! Turning what a reader parsed into a valid [`Mesh`]: welding, wedge construction and the
+//! repair rules. Every reader (OBJ, PLY) fills a [`MeshBuilder`] and calls
+//! [`MeshBuilder::finish`], so the rules are the same whatever the format.
+//!
+//! Repair rules (issue #2, item 6):
+//! - faces with fewer than 3 distinct vertices (after welding) are dropped and counted;
+//! - zero-area faces (height below 1e-12 of the longest edge) are dropped and counted;
+//! - exact duplicate faces (same three vertices, either orientation) are dropped and counted;
+//! - unreferenced vertices are dropped and counted;
+//! - non-manifold edges are kept (topology reports them).
+//!
+//! Non-finite coordinates and out-of-range indices are errors; readers check them with the
+//! line or element where they occur, and `finish` checks indices again as a safety net.
+
+use super::error::{Location, MeshError, Result};
+use super::model::{Index, Material, Mesh, Wedge};
+use glam::{DVec2, DVec3};
+use serde::Serialize;
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+
+/// One face corner as a file states it: indices into the position, texture-coordinate and
+/// normal arrays (0-based, already resolved from negative or 1-based form).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Corner {
+    pub vertex: Index,
+    pub texcoord: Option<Index>,
+    pub normal: Option<Index>,
+}
+
+/// Options that govern loading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LoadOptions {
+    /// Weld vertices closer than this fraction of the bounding-box diagonal.
+    /// 0 (the default) welds only bit-identical positions.
+    pub weld_tolerance: f64,
+    /// Decode every texture image to check it and learn its size.
+    pub check_textures: bool,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            weld_tolerance: 0.0,
+            check_textures: true,
+        }
+    }
+}
+
+/// What loading found and repaired. Shown by `inspect` and kept in reports.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct LoadReport {
+    pub format: String,
+    /// Counts as stored in the file.
+    pub file_vertices: usize,
+    pub file_faces: usize,
+    pub file_texcoords: usize,
+    pub file_normals: usize,
+    /// Polygons with more than 3 corners, fan-triangulated.
+    pub triangulated_polygons: usize,
+    /// Triangles produced from triangle strips.
+    pub strip_triangles: usize,
+    /// Vertices merged into another at the same position.
+    pub welded_vertices: usize,
+    /// Texture coordinates / normals merged with a bit-identical copy.
+    pub merged_texcoords: usize,
+    pub merged_normals: usize,
+    pub dropped_degenerate_faces: usize,
+    pub dropped_zero_area_faces: usize,
+    pub dropped_duplicate_faces: usize,
+    pub dropped_unreferenced_vertices: usize,
+    /// Elements and properties skipped because scanmill does not use them.
+    pub skipped: Vec<String>,
+}
+
+/// Raw arrays as a reader parsed them, before validation and repair.
+#[derive(Debug, Default)]
+pub struct MeshBuilder {
+    pub path: PathBuf,
+    pub positions: Vec<DVec3>,
+    pub texcoords: Vec<DVec2>,
+    pub normals: Vec<DVec3>,
+    /// Empty, or one per position.
+    pub colors: Vec<[u8; 4]>,
+    pub faces: Vec<[Corner; 3]>,
+    /// Empty, or one per face.
+    pub face_materials: Vec<Index>,
+    pub materials: Vec<Material>,
+    pub report: LoadReport,
+}
+
+/// Positions are compared bit-exactly; -0.0 and +0.0 are the same position.
+fn position_key(p: DVec3) -> [u64; 3] {
+    [
+        (p.x + 0.0).to_bits(),
+        (p.y + 0.0).to_bits(),
+        (p.z + 0.0).to_bits(),
+    ]
+}
+
+impl MeshBuilder {
+    pub fn new(path: &Path, format: &str) -> Self {
+        MeshBuilder {
+            path: path.to_path_buf(),
+            report: LoadReport {
+                format: format.to_string(),
+                ..Default::default()
+            },
+            ..Default::default()
+        }
+    }
+
+    /// Validates, welds, builds wedges, applies the repair rules and compacts.
+    pub fn finish(mut self, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
+        self.check_indices()?;
+        let weld = self.weld_map(options.weld_tolerance);
+        let (texcoords, texcoord_map) = dedupe_by_bits(&self.texcoords, |t| {
+            [(t.x + 0.0).to_bits(), (t.y + 0.0).to_bits(), 0]
+        });
+        let (normals, normal_map) = dedupe_by_bits(&self.normals, |n| position_key(n));
+        self.report.merged_texcoords = self.texcoords.len() - texcoords.len();
+        self.report.merged_normals = self.normals.len() - normals.len();
+
+        let mut wedge_ids: HashMap<Wedge, Index> = HashMap::new();
+        let mut wedges: Vec<Wedge> = Vec::new();
+        let mut triangles: Vec<[Index; 3]> = Vec::with_capacity(self.faces.len());
+        let mut triangle_materials: Vec<Index> = Vec::new();
+        let mut seen_faces: HashSet<[Index; 3]> = HashSet::with_capacity(self.faces.len());
+        let has_materials = !self.face_materials.is_empty();
+
+        for (f, face) in self.faces.iter().enumerate() {
+            let v = face.map(|c| weld[c.vertex as usize]);
+            if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] {
+                self.report.dropped_degenerate_faces += 1;
+                continue;
+            }
+            if is_zero_area(
+                self.positions[v[0] as usize],
+                self.positions[v[1] as usize],
+                self.positions[v[2] as usize],
+            ) {
+                self.report.dropped_zero_area_faces += 1;
+                continue;
+            }
+            let mut key = v;
+            key.sort_unstable();
+            if !seen_faces.insert(key) {
+                self.report.dropped_duplicate_faces += 1;
+                continue;
+            }
+            let mut tri = [0; 3];
+            for k in 0..3 {
+                let wedge = Wedge {
+                    vertex: v[k],
+                    texcoord: face[k].texcoord.map(|t| texcoord_map[t as usize]),
+                    normal: face[k].normal.map(|n| normal_map[n as usize]),
+                };
+                tri[k] = *wedge_ids.entry(wedge).or_insert_with(|| {
+                    wedges.push(wedge);
+                    (wedges.len() - 1) as Index
+                });
+            }
+            triangles.push(tri);
+            if has_materials {
+                triangle_materials.push(self.face_materials[f]);
+            }
+        }
+        if triangles.is_empty() {
+            return Err(MeshError::NoTriangles { path: self.path });
+        }
+
+        let referenced_before: usize = {
+            // Vertices that survive welding (representatives), before dropping unreferenced ones.
+            weld.iter()
+                .enumerate()
+                .filter(|&(i, &r)| r as usize == i)
+                .count()
+        };
+        self.report.welded_vertices = self.positions.len() - referenced_before;
+
+        let mut mesh = Mesh {
+            positions: self.positions,
+            texcoords,
+            normals,
+            colors: self.colors,
+            wedges,
+            triangles,
+            triangle_materials,
+            materials: self.materials,
+            triangle_origins: Vec::new(),
+        };
+        let removed = mesh.compact();
+        self.report.dropped_unreferenced_vertices = removed.vertices - self.report.welded_vertices;
+        debug_assert!(mesh.check_invariants().is_ok());
+        Ok((mesh, self.report))
+    }
+
+    fn check_indices(&self) -> Result<()> {
+        let (nv, nt, nn) = (
+            self.positions.len(),
+            self.texcoords.len(),
+            self.normals.len(),
+        );
+        let out_of_range =
+            |f: usize, kind: &'static str, index: Index, count: usize| MeshError::IndexOutOfRange {
+                path: self.path.clone(),
+                at: Location::Element {
+                    element: "face".into(),
+                    index: f as u64,
+                },
+                kind,
+                index: index as i64,
+                count,
+            };
+        for (f, face) in self.faces.iter().enumerate() {
+            for c in face {
+                if c.vertex as usize >= nv {
+                    return Err(out_of_range(f, "vertex", c.vertex, nv));
+                }
+                if let Some(t) = c.texcoord.filter(|&t| t as usize >= nt) {
+                    return Err(out_of_range(f, "texture coordinate", t, nt));
+                }
+                if let Some(n) = c.normal.filter(|&n| n as usize >= nn) {
+                    return Err(out_of_range(f, "normal", n, nn));
+                }
+            }
+        }
+        for (i, p) in self.positions.iter().enumerate() {
+            if !p.is_finite() {
+                return Err(MeshError::NonFinite {
+                    path: self.path.clone(),
+                    at: Location::Element {
+                        element: "vertex".into(),
+                        index: i as u64,
+                    },
+                    value: format!("{} {} {}", p.x, p.y, p.z),
+                });
+            }
+        }
+        if !self.face_materials.is_empty() && self.face_materials.len() != self.faces.len() {
+            return Err(MeshError::malformed(
+                &self.path,
+                Location::Header,
+                "material list does not match faces",
+            ));
+        }
+        Ok(())
+    }
+
+    /// For every vertex, the vertex it is welded into (itself if it is kept).
+    /// Deterministic: the representative is the lowest index of the group.
+    fn weld_map(&self, relative_tolerance: f64) -> Vec<Index> {
+        let n = self.positions.len();
+        let mut map: Vec<Index> = (0..n as Index).collect();
+        if relative_tolerance <= 0.0 {
+            let mut first: HashMap<[u64; 3], Index> = HashMap::with_capacity(n);
+            for (i, &p) in self.positions.iter().enumerate() {
+                map[i] = *first.entry(position_key(p)).or_insert(i as Index);
+            }
+            return map;
+        }
+        let diagonal = bbox_diagonal(&self.positions);
+        let tol = relative_tolerance * diagonal;
+        if tol <= 0.0 {
+            return self.weld_map(0.0);
+        }
+        // Grid hash with cell = tolerance: a vertex is welded into the first earlier
+        // representative within `tol`, searching the 27 neighbouring cells.
+        let cell = |p: DVec3| -> [i64; 3] {
+            let q = (p / tol).floor();
+            [q.x as i64, q.y as i64, q.z as i64]
+        };
+        let mut grid: HashMap<[i64; 3], Vec<Index>> = HashMap::new();
+        for i in 0..n {
+            let p = self.positions[i];
+            let c = cell(p);
+            let mut found: Option<Index> = None;
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let Some(reps) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
+                            continue;
+                        };
+                        for &r in reps {
+                            if self.positions[r as usize].distance(p) <= tol
+                                && found.is_none_or(|f| r < f)
+                            {
+                                found = Some(r);
+                            }
+                        }
+                    }
+                }
+            }
+            match found {
+                Some(r) => map[i] = r,
+                None => grid.entry(c).or_default().push(i as Index),
+            }
+        }
+        map
+    }
+}
+
+fn bbox_diagonal(points: &[DVec3]) -> f64 {
+    let Some(&first) = points.first() else {
+        return 0.0;
+    };
+    let (lo, hi) = points
+        .iter()
+        .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    (hi - lo).length()
+}
+
+/// A triangle whose height is below 1e-12 of its longest edge has no area worth keeping.
+fn is_zero_area(a: DVec3, b: DVec3, c: DVec3) -> bool {
+    let cross = (b - a).cross(c - a).length();
+    let longest = (b - a)
+        .length_squared()
+        .max((c - b).length_squared())
+        .max((a - c).length_squared());
+    // cross = longest_edge * height; height <= 1e-12 * longest_edge
+    cross <= 1e-12 * longest
+}
+
+/// Merges bit-identical values, keeping first occurrences in order.
+fn dedupe_by_bits<T: Copy>(values: &[T], key: impl Fn(T) -> [u64; 3]) -> (Vec<T>, Vec<Index>) {
+    let mut first: HashMap<[u64; 3], Index> = HashMap::with_capacity(values.len());
+    let mut kept = Vec::with_capacity(values.len());
+    let map = values
+        .iter()
+        .map(|&v| {
+            *first.entry(key(v)).or_insert_with(|| {
+                kept.push(v);
+                (kept.len() - 1) as Index
+            })
+        })
+        .collect();
+    (kept, map)
+}

@@ -1,0 +1,90 @@
+//! Typed errors for reading and writing meshes. Every error names the file and, where it
+//! can, the line or element index and the offending value.
+
+use std::fmt;
+use std::path::PathBuf;
+
+/// Where in a file something was found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Location {
+    /// 1-based line of a text file.
+    Line(u64),
+    /// The n-th (0-based) element of a kind, e.g. `vertex 41` in a binary PLY.
+    Element { element: String, index: u64 },
+    /// The header of the file.
+    Header,
+    /// Byte offset in a binary file.
+    Byte(u64),
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Location::Line(n) => write!(f, "line {n}"),
+            Location::Element { element, index } => write!(f, "{element} {index}"),
+            Location::Header => write!(f, "header"),
+            Location::Byte(n) => write!(f, "byte {n}"),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {at}: {message}")]
+    Malformed {
+        path: PathBuf,
+        at: Location,
+        message: String,
+    },
+    #[error("{path}: {at}: coordinate is not a finite number: {value}")]
+    NonFinite {
+        path: PathBuf,
+        at: Location,
+        value: String,
+    },
+    #[error("{path}: {at}: {kind} index {index} is out of range (the file has {count})")]
+    IndexOutOfRange {
+        path: PathBuf,
+        at: Location,
+        kind: &'static str,
+        index: i64,
+        count: usize,
+    },
+    #[error("{path}: texture {texture}: {message}")]
+    Texture {
+        path: PathBuf,
+        texture: String,
+        message: String,
+    },
+    #[error("{path}: texture path {texture:?} leaves the scan's folder; refusing to read it")]
+    PathEscapes { path: PathBuf, texture: String },
+    #[error("{path}: the file holds no usable triangles")]
+    NoTriangles { path: PathBuf },
+    #[error("{path}: not a mesh file scanmill reads (expected .obj, .ply, optionally .gz)")]
+    UnknownFormat { path: PathBuf },
+}
+
+impl MeshError {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        MeshError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    pub fn malformed(path: impl Into<PathBuf>, at: Location, message: impl Into<String>) -> Self {
+        MeshError::Malformed {
+            path: path.into(),
+            at,
+            message: message.into(),
+        }
+    }
+}
+
+pub type Result<T, E = MeshError> = std::result::Result<T, E>;

@@ -1,0 +1,10 @@
+//! The mesh data model and its input/output. Depends on nothing else in the crate.
+
+pub mod build;
+pub mod compact;
+pub mod error;
+pub mod model;
+
+pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
+pub use error::{Location, MeshError};
+pub use model::{Index, Material, Mesh, Texture, Wedge};
