@@ -1,3 +1,3 @@
 fn main() {
-    println!("Hello, world!");
+    eprintln!("scanmill: command line arrives with the I/O merge");
 }

@@ -1,0 +1,4 @@
+//! Processing steps, one module each; every step is a function over the mesh.
+
+pub mod normals;
+pub mod subdivide;

@@ -1,0 +1,152 @@
+//! Seam-keeping 1→4 midpoint subdivision. Used to make scanner-sized meshes (about 400,000
+//! triangles) from the real scans for benchmarks: positions do not move (midpoints only), so
+//! the surface stays the same, and texture seams stay seams because each side of a seam
+//! edge interpolates its own texture coordinates.
+
+use crate::mesh::{Index, Mesh, Wedge};
+use std::collections::HashMap;
+
+/// A midpoint is shared by everything that references the same unordered pair.
+fn pair(a: Index, b: Index) -> (Index, Index) {
+    (a.min(b), a.max(b))
+}
+
+/// Splits every triangle into four at its edge midpoints. Materials and triangle origins are
+/// inherited from the parent triangle.
+pub fn subdivide(mesh: &Mesh) -> Mesh {
+    let mut out = Mesh {
+        positions: mesh.positions.clone(),
+        texcoords: mesh.texcoords.clone(),
+        normals: mesh.normals.clone(),
+        colors: mesh.colors.clone(),
+        wedges: mesh.wedges.clone(),
+        triangles: Vec::with_capacity(mesh.triangles.len() * 4),
+        triangle_materials: Vec::new(),
+        materials: mesh.materials.clone(),
+        triangle_origins: Vec::with_capacity(mesh.triangles.len() * 4),
+    };
+    let mut mid_vertex: HashMap<(Index, Index), Index> = HashMap::new();
+    let mut mid_texcoord: HashMap<(Index, Index), Index> = HashMap::new();
+    let mut mid_normal: HashMap<(Index, Index), Index> = HashMap::new();
+    let mut mid_wedge: HashMap<Wedge, Index> = HashMap::new();
+
+    for t in 0..mesh.triangles.len() {
+        let w = mesh.triangles[t].map(|i| mesh.wedges[i as usize]);
+        let mut m = [0 as Index; 3];
+        for k in 0..3 {
+            let (a, b) = (w[k], w[(k + 1) % 3]);
+            let vertex = *mid_vertex
+                .entry(pair(a.vertex, b.vertex))
+                .or_insert_with(|| {
+                    let (pa, pb) = (
+                        mesh.positions[a.vertex as usize],
+                        mesh.positions[b.vertex as usize],
+                    );
+                    out.positions.push((pa + pb) * 0.5);
+                    if !mesh.colors.is_empty() {
+                        let (ca, cb) = (
+                            mesh.colors[a.vertex as usize],
+                            mesh.colors[b.vertex as usize],
+                        );
+                        out.colors.push(std::array::from_fn(|i| {
+                            ((ca[i] as u16 + cb[i] as u16) / 2) as u8
+                        }));
+                    }
+                    (out.positions.len() - 1) as Index
+                });
+            let texcoord = match (a.texcoord, b.texcoord) {
+                (Some(ta), Some(tb)) => {
+                    Some(*mid_texcoord.entry(pair(ta, tb)).or_insert_with(|| {
+                        out.texcoords.push(
+                            (mesh.texcoords[ta as usize] + mesh.texcoords[tb as usize]) * 0.5,
+                        );
+                        (out.texcoords.len() - 1) as Index
+                    }))
+                }
+                _ => None,
+            };
+            let normal = match (a.normal, b.normal) {
+                (Some(na), Some(nb)) => {
+                    Some(*mid_normal.entry(pair(na, nb)).or_insert_with(|| {
+                        let n = (mesh.normals[na as usize] + mesh.normals[nb as usize])
+                            .normalize_or_zero();
+                        out.normals.push(n);
+                        (out.normals.len() - 1) as Index
+                    }))
+                }
+                _ => None,
+            };
+            let wedge = Wedge {
+                vertex,
+                texcoord,
+                normal,
+            };
+            m[k] = *mid_wedge.entry(wedge).or_insert_with(|| {
+                out.wedges.push(wedge);
+                (out.wedges.len() - 1) as Index
+            });
+        }
+        let c = mesh.triangles[t];
+        out.triangles.push([c[0], m[0], m[2]]);
+        out.triangles.push([m[0], c[1], m[1]]);
+        out.triangles.push([m[2], m[1], c[2]]);
+        out.triangles.push([m[0], m[1], m[2]]);
+        let origin = mesh.triangle_origin(t);
+        out.triangle_origins.extend([origin; 4]);
+        if !mesh.triangle_materials.is_empty() {
+            out.triangle_materials
+                .extend([mesh.triangle_materials[t]; 4]);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::{grid, uv_sphere};
+
+    #[test]
+    fn quadruples_faces_and_keeps_area() {
+        let m = uv_sphere(1.0, 6, 8);
+        let s = subdivide(&m);
+        s.check_invariants().unwrap();
+        assert_eq!(s.triangles.len(), 4 * m.triangles.len());
+        let area = |m: &Mesh| {
+            (0..m.triangles.len())
+                .map(|t| m.triangle_area(t))
+                .sum::<f64>()
+        };
+        assert!((area(&m) - area(&s)).abs() < 1e-12);
+        // Euler characteristic of a closed sphere stays 2: V' = V + E, E = 3F/2.
+        assert_eq!(
+            s.positions.len(),
+            m.positions.len() + 3 * m.triangles.len() / 2
+        );
+        assert_eq!(s.triangle_origins[7], 1);
+    }
+
+    #[test]
+    fn seam_edges_get_two_midpoint_wedges() {
+        // A 1x1 grid whose two triangles use separate texture coordinates along the diagonal.
+        let mut m = grid(1, 1);
+        let diag_far = m.wedges[3];
+        m.texcoords.push(glam::DVec2::new(0.9, 0.9));
+        let t = (m.texcoords.len() - 1) as Index;
+        m.wedges.push(Wedge {
+            texcoord: Some(t),
+            ..diag_far
+        });
+        m.triangles[1][1] = 4; // second triangle uses the seam copy of vertex 3
+        let s = subdivide(&m);
+        s.check_invariants().unwrap();
+        // 4 corners + 5 edge midpoints; the diagonal midpoint has two wedges.
+        assert_eq!(s.positions.len(), 9);
+        let diag_mid = s
+            .positions
+            .iter()
+            .position(|p| (*p - glam::DVec3::new(0.5, 0.5, 0.0)).length() < 1e-12)
+            .unwrap() as Index;
+        assert_eq!(s.wedges.iter().filter(|w| w.vertex == diag_mid).count(), 2);
+    }
+}
