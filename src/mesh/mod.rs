@@ -4,6 +4,7 @@ pub mod build;
 pub mod compact;
 pub mod error;
 pub mod model;
+pub mod ply;
 
 pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};
