@@ -531,3 +531,40 @@ fn normals_are_written_only_when_per_vertex() {
     let bytes = std::fs::read(&path).unwrap();
     assert!(!String::from_utf8_lossy(&bytes).contains("nx"));
 }
+
+#[test]
+fn writer_copies_present_textures() {
+    let src = tempfile::tempdir().unwrap();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([9, 9, 9]))
+        .save(src.path().join("skin.png"))
+        .unwrap();
+    let text = SQUARE_ASCII.replace(
+        "comment a unit",
+        "comment TextureFile skin.png\ncomment a unit",
+    );
+    let (mesh, _) = read(
+        &src.path().join("in.ply"),
+        text.as_bytes(),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let path = out.path().join("out.ply");
+    let written = write(&mesh, &path, PlyEncoding::BinaryLittleEndian).unwrap();
+    assert_eq!(written, vec![path.clone(), out.path().join("skin.png")]);
+    let (back, _) = read(
+        &path,
+        &std::fs::read(&path).unwrap(),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let texture = back.materials[0].diffuse_texture.as_ref().unwrap();
+    assert_eq!(
+        (texture.name.as_str(), texture.size),
+        ("skin.png", Some((2, 2)))
+    );
+    // Writing next to the texture itself does not copy it onto itself.
+    let beside = src.path().join("again.ply");
+    let written = write(&mesh, &beside, PlyEncoding::Ascii).unwrap();
+    assert_eq!(written, vec![beside, src.path().join("skin.png")]);
+}
