@@ -166,7 +166,22 @@ impl MeshBuilder {
             }
         }
         if triangles.is_empty() {
-            return Err(MeshError::NoTriangles { path: self.path });
+            let r = &self.report;
+            let reason = if self.faces.is_empty() {
+                "the file has no faces".to_string()
+            } else {
+                format!(
+                    "all {} faces were dropped ({} degenerate, {} zero-area, {} duplicate)",
+                    self.faces.len(),
+                    r.dropped_degenerate_faces,
+                    r.dropped_zero_area_faces,
+                    r.dropped_duplicate_faces
+                )
+            };
+            return Err(MeshError::NoTriangles {
+                path: self.path,
+                reason,
+            });
         }
 
         let referenced_before: usize = {

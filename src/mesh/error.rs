@@ -64,8 +64,10 @@ pub enum MeshError {
     },
     #[error("{path}: texture path {texture:?} leaves the scan's folder; refusing to read it")]
     PathEscapes { path: PathBuf, texture: String },
-    #[error("{path}: the file holds no usable triangles")]
-    NoTriangles { path: PathBuf },
+    /// `reason` says why, e.g. "the file has no face element" or which repair rules dropped
+    /// every face.
+    #[error("{path}: the file holds no usable triangles: {reason}")]
+    NoTriangles { path: PathBuf, reason: String },
     #[error("{path}: not a mesh file scanmill reads (expected .obj, .ply, optionally .gz)")]
     UnknownFormat { path: PathBuf },
 }

@@ -4,6 +4,7 @@ pub mod build;
 pub mod compact;
 pub mod error;
 pub mod model;
+pub mod ply;
 pub mod shapes;
 
 pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};

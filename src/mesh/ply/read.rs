@@ -1,0 +1,820 @@
+//! Reading a PLY file into a [`MeshBuilder`].
+//!
+//! What is understood (everything else is skipped and listed in `LoadReport::skipped`):
+//! - `vertex`: `x y z` (any scalar type), `nx ny nz`, `red green blue [alpha]` (integers as
+//!   0..255, floats as 0..1), and per-vertex texture coordinates under `s t`, `u v`,
+//!   `texture_u texture_v` or `texture_s texture_t`;
+//! - `face`: `vertex_indices` / `vertex_index` (any integer types; polygons are
+//!   fan-triangulated), `texcoord` (MeshLab / OpenMVS: two values per corner) and `texnumber`;
+//! - `tristrips` (`vertex_indices` with -1 restarts, alternating winding);
+//! - Artec's `multi_texture_vertex` (`tx u v`) and `multi_texture_face`
+//!   (`tx tn texture_vertex_indices`): record `tn` names the face, its indices give that face's
+//!   corners' texture vertices and `tx` its texture;
+//! - `comment TextureFile NAME`: one material per line, in order.
+//!
+//! The header's counts are the truth: a body that ends early is an error naming the element
+//! that is cut off. Data after the last element cannot belong to any element the header
+//! declares; it is ignored with a warning and noted in `skipped` (MeshLab and rply do the same),
+//! so a file whose header declares fewer faces than it holds loads the declared ones.
+
+use super::header::{self, Element, Format, Header, PropertyKind, Scalar};
+use super::source::{Ascii, Binary, Fault, Source, Step};
+use crate::mesh::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
+use crate::mesh::error::{Location, MeshError, Result};
+use crate::mesh::model::{Index, Material, Mesh, Texture};
+use glam::{DVec2, DVec3};
+use std::path::{Component, Path};
+
+/// Marks, in `Material::other_statements`, a texture the PLY header names but that is not on
+/// disk (`# missing texture: NAME`). It keeps the name for the PLY writer (which writes the
+/// `comment TextureFile` line again) and reads as a comment in an MTL.
+pub const MISSING_TEXTURE_PREFIX: &str = "# missing texture: ";
+
+const NONE: u32 = u32::MAX;
+
+/// Everything the body holds that the mesh needs, in flat arrays (no per-element allocation).
+#[derive(Default)]
+struct Raw {
+    positions: Vec<DVec3>,
+    normals: Vec<DVec3>,
+    colors: Vec<[u8; 4]>,
+    /// Per-vertex texture coordinates (one per vertex, or empty).
+    vertex_uvs: Vec<DVec2>,
+    /// Face polygons: corner vertex indices, flat, with `face_start[f]..face_start[f + 1]`.
+    face_vertices: Vec<Index>,
+    face_start: Vec<usize>,
+    /// Per-corner texture coordinates, parallel to `face_vertices` (`NONE` = none), indices
+    /// into `corner_uv_values`; empty when no face has any.
+    corner_uvs: Vec<u32>,
+    corner_uv_values: Vec<DVec2>,
+    /// Texture number per face (`texnumber` or Artec `tx`); empty when the file has none.
+    face_textures: Vec<u32>,
+    strip_triangles: Vec<[Index; 3]>,
+    /// Artec multi-texture vertices and faces.
+    multi_uvs: Vec<DVec2>,
+    multi_face_texture: Vec<u32>,
+    multi_face_target: Vec<u64>,
+    multi_face_indices: Vec<u32>,
+    multi_face_start: Vec<usize>,
+    skipped: Vec<String>,
+}
+
+/// Reads a PLY file whose (already decompressed) content is `bytes`.
+pub fn read(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
+    let header = header::parse(path, bytes)?;
+    if header.element("face").is_none() && header.element("tristrips").is_none() {
+        let elements: Vec<String> = header
+            .elements
+            .iter()
+            .map(|e| format!("{} {}", e.name, e.count))
+            .collect();
+        return Err(MeshError::NoTriangles {
+            path: path.to_path_buf(),
+            reason: format!(
+                "the file has no face element (it has: {}); a point cloud or range image is not a mesh",
+                elements.join(", ")
+            ),
+        });
+    }
+    let body = &bytes[header.body_start..];
+    let mut raw = Raw {
+        face_start: vec![0],
+        multi_face_start: vec![0],
+        ..Raw::default()
+    };
+    match header.format {
+        Format::Ascii => read_body(path, &header, &mut Ascii::new(body, header.lines), &mut raw)?,
+        Format::BinaryLittleEndian => {
+            read_body(path, &header, &mut Binary::new(body, false), &mut raw)?
+        }
+        Format::BinaryBigEndian => {
+            read_body(path, &header, &mut Binary::new(body, true), &mut raw)?
+        }
+    }
+    assemble(path, &header, raw, options)
+}
+
+fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S, raw: &mut Raw) -> Result<()> {
+    let vertex_count = header.element("vertex").map_or(0, |e| e.count);
+    if vertex_count > Index::MAX as u64 {
+        return Err(MeshError::malformed(
+            path,
+            Location::Header,
+            format!(
+                "{vertex_count} vertices are more than scanmill handles ({})",
+                Index::MAX
+            ),
+        ));
+    }
+    let nv = vertex_count as usize;
+    for element in &header.elements {
+        if element.properties.is_empty() || element.count == 0 {
+            continue;
+        }
+        match element.name.as_str() {
+            "vertex" => read_vertices(path, element, src, raw)?,
+            "face" => read_faces(path, element, src, raw, nv)?,
+            "tristrips" => read_strips(path, element, src, raw, nv)?,
+            "multi_texture_vertex" => read_multi_vertices(path, element, src, raw)?,
+            "multi_texture_face" => read_multi_faces(path, element, src, raw)?,
+            _ => {
+                src.skip_all(element)
+                    .map_err(|(i, fault)| to_error(path, src, element, i, fault))?;
+                raw.skipped.push(format!(
+                    "element {} ({} elements)",
+                    element.name, element.count
+                ));
+            }
+        }
+    }
+    if let Some(trailing) = src.trailing() {
+        tracing::warn!(path = %path.display(), "PLY body has {trailing}; ignored (the header's counts are authoritative)");
+        raw.skipped.push(format!("{trailing} (ignored)"));
+    }
+    Ok(())
+}
+
+/// Turns a source fault in element `index` into a located error.
+fn to_error<S: Source>(
+    path: &Path,
+    src: &S,
+    element: &Element,
+    index: u64,
+    fault: Fault,
+) -> MeshError {
+    let at = src.location(&element.name, index);
+    // Binary locations already say "face 12"; ASCII ones give the line, so name the element.
+    let prefix = match at {
+        Location::Line(_) => format!("{} {index}: ", element.name),
+        _ => String::new(),
+    };
+    match fault {
+        Fault::Truncated(detail) => MeshError::malformed(
+            path,
+            at,
+            format!(
+                "truncated: expected {} {} elements, found {index}{detail}",
+                element.count, element.name
+            ),
+        ),
+        Fault::Invalid(message) => MeshError::malformed(path, at, format!("{prefix}{message}")),
+        Fault::NonFinite(value) => MeshError::NonFinite {
+            path: path.to_path_buf(),
+            at,
+            value: format!("{prefix}{value}"),
+        },
+        Fault::Index { kind, index, count } => MeshError::IndexOutOfRange {
+            path: path.to_path_buf(),
+            at,
+            kind,
+            index,
+            count,
+        },
+    }
+}
+
+/// Runs `body` for every element of `element`, between `begin` and `end`, with located errors.
+fn for_each<S: Source>(
+    path: &Path,
+    element: &Element,
+    src: &mut S,
+    mut body: impl FnMut(&mut S, u64) -> Step,
+) -> Result<()> {
+    for i in 0..element.count {
+        let step = src
+            .begin()
+            .and_then(|()| body(src, i))
+            .and_then(|()| src.end());
+        if let Err(fault) = step {
+            return Err(to_error(path, src, element, i, fault));
+        }
+    }
+    Ok(())
+}
+
+/// Reserve for `count` elements, but never more than the remaining bytes could hold: a lying
+/// header must not cause a huge allocation.
+fn capacity<S: Source>(src: &S, element: &Element) -> usize {
+    let min = element.min_binary_size().max(2);
+    (element.count.min((src.remaining() / min) as u64)) as usize
+}
+
+fn index_value(value: f64, count: usize, kind: &'static str) -> Step<Index> {
+    if value < 0.0 || value >= count as f64 {
+        return Err(Fault::Index {
+            kind,
+            index: value as i64,
+            count,
+        });
+    }
+    Ok(value as Index)
+}
+
+fn require_integer_list(path: &Path, element: &Element, name: &str) -> Result<(Scalar, Scalar)> {
+    match element.property(name).map(|(_, p)| p.kind) {
+        Some(PropertyKind::List { count, item }) if item.is_integer() => Ok((count, item)),
+        _ => Err(MeshError::malformed(
+            path,
+            Location::Header,
+            format!(
+                "element {}: property {name} must be a list of integers",
+                element.name
+            ),
+        )),
+    }
+}
+
+// Slots of the vertex value array.
+const SKIP: usize = 0;
+const X: usize = 1;
+const NX: usize = 4;
+const RED: usize = 7;
+const ALPHA: usize = 10;
+const U: usize = 11;
+const SLOTS: usize = 13;
+
+fn read_vertices<S: Source>(
+    path: &Path,
+    element: &Element,
+    src: &mut S,
+    raw: &mut Raw,
+) -> Result<()> {
+    let has = |name: &str| element.property(name).is_some();
+    for axis in ["x", "y", "z"] {
+        match element.property(axis) {
+            Some((_, p)) if matches!(p.kind, PropertyKind::Scalar(_)) => {}
+            _ => {
+                return Err(MeshError::malformed(
+                    path,
+                    Location::Header,
+                    format!("element vertex has no scalar property {axis}"),
+                ));
+            }
+        }
+    }
+    let normals = ["nx", "ny", "nz"].iter().all(|n| has(n));
+    let color_prefix = ["", "diffuse_"].into_iter().find(|prefix| {
+        ["red", "green", "blue"]
+            .iter()
+            .all(|c| has(&format!("{prefix}{c}")))
+    });
+    let uv_names = [
+        ("s", "t"),
+        ("u", "v"),
+        ("texture_u", "texture_v"),
+        ("texture_s", "texture_t"),
+    ]
+    .into_iter()
+    .find(|(u, v)| has(u) && has(v));
+
+    let mut slots = vec![SKIP; element.properties.len()];
+    let mut scalar_types = [Scalar::F32; SLOTS];
+    for (k, p) in element.properties.iter().enumerate() {
+        let name = p.name.as_str();
+        let slot = match name {
+            "x" => X,
+            "y" => X + 1,
+            "z" => X + 2,
+            "nx" if normals => NX,
+            "ny" if normals => NX + 1,
+            "nz" if normals => NX + 2,
+            _ if uv_names.is_some_and(|(u, _)| u == name) => U,
+            _ if uv_names.is_some_and(|(_, v)| v == name) => U + 1,
+            _ => match color_prefix.and_then(|prefix| name.strip_prefix(prefix)) {
+                Some("red") => RED,
+                Some("green") => RED + 1,
+                Some("blue") => RED + 2,
+                Some("alpha") => ALPHA,
+                _ => SKIP,
+            },
+        };
+        match (slot, p.kind) {
+            (SKIP, _) => raw.skipped.push(format!("vertex.{name}")),
+            (_, PropertyKind::Scalar(ty)) => scalar_types[slot] = ty,
+            (_, PropertyKind::List { .. }) => {
+                // A list where a scalar is expected: not something we can use.
+                slots[k] = SKIP;
+                raw.skipped.push(format!("vertex.{name} (a list)"));
+                continue;
+            }
+        }
+        slots[k] = slot;
+    }
+    let has_alpha = slots.contains(&ALPHA);
+
+    let cap = capacity(src, element);
+    raw.positions.reserve(cap);
+    if normals {
+        raw.normals.reserve(cap);
+    }
+    if color_prefix.is_some() {
+        raw.colors.reserve(cap);
+    }
+    if uv_names.is_some() {
+        raw.vertex_uvs.reserve(cap);
+    }
+    let to_byte = |value: f64, ty: Scalar| -> u8 {
+        let scaled = match ty {
+            Scalar::F32 | Scalar::F64 => value * 255.0,
+            Scalar::U16 => value / 257.0,
+            _ => value,
+        };
+        // NaN saturates to 0.
+        scaled.round().clamp(0.0, 255.0) as u8
+    };
+    let mut values = [0.0f64; SLOTS];
+    values[ALPHA] = 255.0;
+    scalar_types[ALPHA] = if has_alpha {
+        scalar_types[ALPHA]
+    } else {
+        Scalar::U8
+    };
+
+    for_each(path, element, src, |src, _| {
+        for (p, &slot) in element.properties.iter().zip(&slots) {
+            match p.kind {
+                PropertyKind::Scalar(ty) => values[slot] = src.value(ty)?,
+                list => src.skip(list)?,
+            }
+        }
+        let position = DVec3::new(values[X], values[X + 1], values[X + 2]);
+        if !position.is_finite() {
+            return Err(Fault::NonFinite(format!(
+                "{} {} {}",
+                position.x, position.y, position.z
+            )));
+        }
+        raw.positions.push(position);
+        if normals {
+            raw.normals
+                .push(DVec3::new(values[NX], values[NX + 1], values[NX + 2]));
+        }
+        if color_prefix.is_some() {
+            raw.colors.push(std::array::from_fn(|c| {
+                to_byte(values[RED + c], scalar_types[RED + c])
+            }));
+        }
+        if uv_names.is_some() {
+            let uv = DVec2::new(values[U], values[U + 1]);
+            if !uv.is_finite() {
+                return Err(Fault::NonFinite(format!(
+                    "texture coordinate {} {}",
+                    uv.x, uv.y
+                )));
+            }
+            raw.vertex_uvs.push(uv);
+        }
+        Ok(())
+    })
+}
+
+fn read_faces<S: Source>(
+    path: &Path,
+    element: &Element,
+    src: &mut S,
+    raw: &mut Raw,
+    nv: usize,
+) -> Result<()> {
+    let index_name = if element.property("vertex_indices").is_some() {
+        "vertex_indices"
+    } else {
+        "vertex_index"
+    };
+    require_integer_list(path, element, index_name)?;
+    #[derive(Clone, Copy, PartialEq)]
+    enum Role {
+        Skip,
+        Indices,
+        Texcoords,
+        TexNumber,
+    }
+    let roles: Vec<Role> = element
+        .properties
+        .iter()
+        .map(|p| match (p.name.as_str(), p.kind) {
+            (name, PropertyKind::List { .. }) if name == index_name => Role::Indices,
+            ("texcoord", PropertyKind::List { .. }) => Role::Texcoords,
+            ("texnumber", PropertyKind::Scalar(_)) => Role::TexNumber,
+            (name, _) => {
+                raw.skipped.push(format!("face.{name}"));
+                Role::Skip
+            }
+        })
+        .collect();
+    let has_uvs = roles.contains(&Role::Texcoords);
+    let has_texnumber = roles.contains(&Role::TexNumber);
+
+    let cap = capacity(src, element);
+    raw.face_start.reserve(cap);
+    raw.face_vertices.reserve(cap * 3);
+    if has_uvs {
+        raw.corner_uvs.resize(raw.face_vertices.len(), NONE);
+        raw.corner_uvs.reserve(cap * 3);
+        raw.corner_uv_values.reserve(cap * 3);
+    }
+    if has_texnumber {
+        raw.face_textures.reserve(cap);
+    }
+    // Per-face texture coordinates may come before the indices: gather them here (reused).
+    let mut uv_scratch: Vec<f64> = Vec::new();
+
+    for_each(path, element, src, |src, _| {
+        let first = raw.face_vertices.len();
+        let mut texnumber = 0u32;
+        uv_scratch.clear();
+        for (p, &role) in element.properties.iter().zip(&roles) {
+            match (role, p.kind) {
+                (Role::Indices, PropertyKind::List { count, item }) => {
+                    let n = src.list_len(count, item)?;
+                    if n < 3 {
+                        return Err(Fault::Invalid(format!(
+                            "a face needs at least 3 vertex indices, this one has {n}"
+                        )));
+                    }
+                    for _ in 0..n {
+                        let v = index_value(src.value(item)?, nv, "vertex")?;
+                        raw.face_vertices.push(v);
+                    }
+                }
+                (Role::Texcoords, PropertyKind::List { count, item }) => {
+                    let n = src.list_len(count, item)?;
+                    for _ in 0..n {
+                        uv_scratch.push(src.value(item)?);
+                    }
+                }
+                (Role::TexNumber, PropertyKind::Scalar(ty)) => {
+                    let t = src.value(ty)?;
+                    if !(0.0..=f64::from(u16::MAX)).contains(&t) || t.fract() != 0.0 {
+                        return Err(Fault::Invalid(format!(
+                            "texnumber {t} is not a texture number"
+                        )));
+                    }
+                    texnumber = t as u32;
+                }
+                (_, kind) => src.skip(kind)?,
+            }
+        }
+        let corners = raw.face_vertices.len() - first;
+        if has_uvs {
+            if uv_scratch.is_empty() {
+                raw.corner_uvs.extend(std::iter::repeat_n(NONE, corners));
+            } else if uv_scratch.len() == 2 * corners {
+                for uv in uv_scratch.chunks_exact(2) {
+                    let uv = DVec2::new(uv[0], uv[1]);
+                    if !uv.is_finite() {
+                        return Err(Fault::NonFinite(format!(
+                            "texture coordinate {} {}",
+                            uv.x, uv.y
+                        )));
+                    }
+                    raw.corner_uvs.push(raw.corner_uv_values.len() as u32);
+                    raw.corner_uv_values.push(uv);
+                }
+            } else {
+                return Err(Fault::Invalid(format!(
+                    "texcoord has {} values for a face with {corners} corners (expected {})",
+                    uv_scratch.len(),
+                    2 * corners
+                )));
+            }
+        }
+        if has_texnumber {
+            raw.face_textures.push(texnumber);
+        }
+        raw.face_start.push(raw.face_vertices.len());
+        Ok(())
+    })
+}
+
+/// Unrolls triangle strips: triangle j of a strip is (v[j], v[j+1], v[j+2]), with the first
+/// two swapped for odd j so that all keep the strip's orientation; -1 restarts a strip.
+/// Triangles that repeat an index are the zero-area joins strippers insert; they are dropped.
+fn read_strips<S: Source>(
+    path: &Path,
+    element: &Element,
+    src: &mut S,
+    raw: &mut Raw,
+    nv: usize,
+) -> Result<()> {
+    require_integer_list(path, element, "vertex_indices")?;
+    for p in &element.properties {
+        if p.name != "vertex_indices" {
+            raw.skipped.push(format!("tristrips.{}", p.name));
+        }
+    }
+    for_each(path, element, src, |src, _| {
+        for p in &element.properties {
+            let PropertyKind::List { count, item } = p.kind else {
+                src.skip(p.kind)?;
+                continue;
+            };
+            if p.name != "vertex_indices" {
+                src.skip(p.kind)?;
+                continue;
+            }
+            let n = src.list_len(count, item)?;
+            raw.strip_triangles.reserve(n);
+            let (mut a, mut b, mut len) = (0, 0, 0usize);
+            for _ in 0..n {
+                let value = src.value(item)?;
+                if value == -1.0 {
+                    len = 0;
+                    continue;
+                }
+                let c = index_value(value, nv, "vertex")?;
+                if len >= 2 {
+                    let tri = if (len - 2) % 2 == 0 {
+                        [a, b, c]
+                    } else {
+                        [b, a, c]
+                    };
+                    if a != b && b != c && a != c {
+                        raw.strip_triangles.push(tri);
+                    }
+                }
+                (a, b) = (b, c);
+                len += 1;
+            }
+        }
+        Ok(())
+    })
+}
+
+fn read_multi_vertices<S: Source>(
+    path: &Path,
+    element: &Element,
+    src: &mut S,
+    raw: &mut Raw,
+) -> Result<()> {
+    let (Some((iu, _)), Some((iv, _))) = (element.property("u"), element.property("v")) else {
+        return Err(MeshError::malformed(
+            path,
+            Location::Header,
+            "element multi_texture_vertex has no u and v properties",
+        ));
+    };
+    for p in &element.properties {
+        if !matches!(p.name.as_str(), "u" | "v" | "tx") {
+            raw.skipped.push(format!("multi_texture_vertex.{}", p.name));
+        }
+    }
+    raw.multi_uvs.reserve(capacity(src, element));
+    for_each(path, element, src, |src, _| {
+        let mut uv = DVec2::ZERO;
+        for (k, p) in element.properties.iter().enumerate() {
+            match p.kind {
+                PropertyKind::Scalar(ty) if k == iu => uv.x = src.value(ty)?,
+                PropertyKind::Scalar(ty) if k == iv => uv.y = src.value(ty)?,
+                kind => src.skip(kind)?,
+            }
+        }
+        if !uv.is_finite() {
+            return Err(Fault::NonFinite(format!(
+                "texture coordinate {} {}",
+                uv.x, uv.y
+            )));
+        }
+        raw.multi_uvs.push(uv);
+        Ok(())
+    })
+}
+
+fn read_multi_faces<S: Source>(
+    path: &Path,
+    element: &Element,
+    src: &mut S,
+    raw: &mut Raw,
+) -> Result<()> {
+    require_integer_list(path, element, "texture_vertex_indices")?;
+    for p in &element.properties {
+        if !matches!(p.name.as_str(), "tx" | "tn" | "texture_vertex_indices") {
+            raw.skipped.push(format!("multi_texture_face.{}", p.name));
+        }
+    }
+    let texture_vertices = raw.multi_uvs.len();
+    for_each(path, element, src, |src, i| {
+        let (mut tx, mut tn) = (0.0, i as f64);
+        for p in &element.properties {
+            match (p.name.as_str(), p.kind) {
+                ("tx", PropertyKind::Scalar(ty)) => tx = src.value(ty)?,
+                ("tn", PropertyKind::Scalar(ty)) => tn = src.value(ty)?,
+                ("texture_vertex_indices", PropertyKind::List { count, item }) => {
+                    let n = src.list_len(count, item)?;
+                    for _ in 0..n {
+                        let t = index_value(src.value(item)?, texture_vertices, "texture vertex")?;
+                        raw.multi_face_indices.push(t);
+                    }
+                }
+                (_, kind) => src.skip(kind)?,
+            }
+        }
+        if !(0.0..=f64::from(u16::MAX)).contains(&tx) || tn < 0.0 {
+            return Err(Fault::Invalid(format!(
+                "bad texture number tx {tx} or face number tn {tn}"
+            )));
+        }
+        raw.multi_face_texture.push(tx as u32);
+        raw.multi_face_target.push(tn as u64);
+        raw.multi_face_start.push(raw.multi_face_indices.len());
+        Ok(())
+    })
+}
+
+/// Applies Artec's per-face texture-vertex indices to the faces they name.
+fn apply_multi_texture(path: &Path, raw: &mut Raw) -> Result<()> {
+    let records = raw.multi_face_target.len();
+    if records == 0 {
+        return Ok(());
+    }
+    let faces = raw.face_start.len() - 1;
+    let base = raw.corner_uv_values.len() as u32;
+    raw.corner_uv_values.extend_from_slice(&raw.multi_uvs);
+    raw.corner_uvs.resize(raw.face_vertices.len(), NONE);
+    if raw.face_textures.is_empty() {
+        raw.face_textures = vec![0; faces];
+    }
+    for r in 0..records {
+        let at = || Location::Element {
+            element: "multi_texture_face".into(),
+            index: r as u64,
+        };
+        let f = raw.multi_face_target[r];
+        if f >= faces as u64 {
+            return Err(MeshError::IndexOutOfRange {
+                path: path.to_path_buf(),
+                at: at(),
+                kind: "face",
+                index: f.min(i64::MAX as u64) as i64,
+                count: faces,
+            });
+        }
+        let f = f as usize;
+        let corners = raw.face_start[f]..raw.face_start[f + 1];
+        let uvs = &raw.multi_face_indices[raw.multi_face_start[r]..raw.multi_face_start[r + 1]];
+        if uvs.len() != corners.len() {
+            return Err(MeshError::malformed(
+                path,
+                at(),
+                format!(
+                    "{} texture vertex indices for face {f}, which has {} corners",
+                    uvs.len(),
+                    corners.len()
+                ),
+            ));
+        }
+        for (slot, &t) in raw.corner_uvs[corners].iter_mut().zip(uvs) {
+            *slot = base + t;
+        }
+        raw.face_textures[f] = raw.multi_face_texture[r];
+    }
+    Ok(())
+}
+
+/// Materials from `comment TextureFile` lines.
+///
+/// PLY texture files are optional: MeshLab and OpenMVS name them in a comment, and PLYs are
+/// routinely passed around without them (see data/ply_texcoords). So a texture that is not on
+/// disk does not fail the load, even with `check_textures`: the material is kept with
+/// `diffuse_texture: None`, its name is kept in `other_statements` (see
+/// [`MISSING_TEXTURE_PREFIX`]) and a warning is logged. A name that leaves the scan's folder is
+/// treated the same way (never read). A texture that is present but does not decode is an error
+/// with `check_textures`, as for OBJ: the user clearly meant it to be used.
+fn texture_materials(
+    path: &Path,
+    names: &[String],
+    options: &LoadOptions,
+) -> Result<Vec<Material>> {
+    let dir = path.parent().unwrap_or(Path::new(""));
+    names
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let mut material = Material {
+                name: format!("texture{i}"),
+                ..Material::default()
+            };
+            let escapes = Path::new(name)
+                .components()
+                .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir));
+            let file = dir.join(name);
+            if escapes || !file.is_file() {
+                let why = if escapes { "leaves the scan's folder; not read" } else { "is missing" };
+                tracing::warn!(path = %path.display(), texture = %name, "PLY texture {why}; material {} has no texture", material.name);
+                material
+                    .other_statements
+                    .push(format!("{MISSING_TEXTURE_PREFIX}{name}"));
+                return Ok(material);
+            }
+            let size = if options.check_textures {
+                let image = image::ImageReader::open(&file)
+                    .and_then(|r| r.with_guessed_format())
+                    .map_err(|e| e.to_string())
+                    .and_then(|r| r.decode().map_err(|e| e.to_string()))
+                    .map_err(|message| MeshError::Texture {
+                        path: path.to_path_buf(),
+                        texture: name.clone(),
+                        message,
+                    })?;
+                Some((image.width(), image.height()))
+            } else {
+                None
+            };
+            material.diffuse_texture = Some(Texture {
+                name: name.clone(),
+                path: file,
+                size,
+            });
+            Ok(material)
+        })
+        .collect()
+}
+
+fn assemble(
+    path: &Path,
+    header: &Header,
+    mut raw: Raw,
+    options: &LoadOptions,
+) -> Result<(Mesh, LoadReport)> {
+    let faces = raw.face_start.len() - 1;
+    apply_multi_texture(path, &mut raw)?;
+
+    let mut materials = texture_materials(path, &header.texture_files(), options)?;
+    let max_texture = raw.face_textures.iter().copied().max();
+    let with_materials = !materials.is_empty() || max_texture.is_some_and(|m| m > 0);
+    if let Some(max) = max_texture.filter(|_| with_materials) {
+        if max as usize >= materials.len() {
+            tracing::warn!(path = %path.display(), "faces use texture {max} but the header names {} texture files; adding materials without texture", materials.len());
+        }
+        while materials.len() <= max as usize {
+            materials.push(Material {
+                name: format!("texture{}", materials.len()),
+                ..Material::default()
+            });
+        }
+    }
+
+    let mut b = MeshBuilder::new(path, &format!("ply {}", header.format.keyword()));
+    let vertex_uv_count = raw.vertex_uvs.len();
+    b.report.file_vertices = raw.positions.len();
+    b.report.file_faces = faces;
+    b.report.file_normals = raw.normals.len();
+    b.report.file_texcoords = vertex_uv_count + raw.corner_uv_values.len();
+    b.report.strip_triangles = raw.strip_triangles.len();
+    b.report.skipped = std::mem::take(&mut raw.skipped);
+
+    let has_normals = !raw.normals.is_empty();
+    let bad_normals = raw.normals.iter().filter(|n| !n.is_finite()).count();
+    if bad_normals > 0 {
+        tracing::warn!(path = %path.display(), "{bad_normals} vertex normals are not finite; those corners get no normal");
+    }
+    let corner = |v: Index, uv: u32| Corner {
+        vertex: v,
+        texcoord: if uv != NONE {
+            Some(vertex_uv_count as Index + uv)
+        } else if vertex_uv_count > 0 {
+            Some(v)
+        } else {
+            None
+        },
+        normal: (has_normals && raw.normals[v as usize].is_finite()).then_some(v),
+    };
+
+    let triangles = raw.face_vertices.len().saturating_sub(2 * faces) + raw.strip_triangles.len();
+    b.faces.reserve(triangles);
+    if with_materials {
+        b.face_materials.reserve(triangles);
+    }
+    for f in 0..faces {
+        let (start, end) = (raw.face_start[f], raw.face_start[f + 1]);
+        if end - start > 3 {
+            b.report.triangulated_polygons += 1;
+        }
+        let c = |k: usize| {
+            corner(
+                raw.face_vertices[k],
+                raw.corner_uvs.get(k).copied().unwrap_or(NONE),
+            )
+        };
+        for k in start + 1..end - 1 {
+            b.faces.push([c(start), c(k), c(k + 1)]);
+            if with_materials {
+                b.face_materials
+                    .push(raw.face_textures.get(f).copied().unwrap_or(0));
+            }
+        }
+    }
+    for tri in &raw.strip_triangles {
+        b.faces.push(tri.map(|v| corner(v, NONE)));
+        if with_materials {
+            b.face_materials.push(0);
+        }
+    }
+
+    b.positions = raw.positions;
+    b.normals = raw.normals;
+    b.colors = raw.colors;
+    b.texcoords = raw.vertex_uvs;
+    b.texcoords.extend_from_slice(&raw.corner_uv_values);
+    b.materials = materials;
+    b.finish(options)
+}
