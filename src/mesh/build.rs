@@ -117,7 +117,7 @@ impl MeshBuilder {
         let (texcoords, texcoord_map) = dedupe_by_bits(&self.texcoords, |t| {
             [(t.x + 0.0).to_bits(), (t.y + 0.0).to_bits(), 0]
         });
-        let (normals, normal_map) = dedupe_by_bits(&self.normals, |n| position_key(n));
+        let (normals, normal_map) = dedupe_by_bits(&self.normals, position_key);
         self.report.merged_texcoords = self.texcoords.len() - texcoords.len();
         self.report.merged_normals = self.normals.len() - normals.len();
 
@@ -271,8 +271,7 @@ impl MeshBuilder {
             [q.x as i64, q.y as i64, q.z as i64]
         };
         let mut grid: HashMap<[i64; 3], Vec<Index>> = HashMap::new();
-        for i in 0..n {
-            let p = self.positions[i];
+        for (i, &p) in self.positions.iter().enumerate() {
             let c = cell(p);
             let mut found: Option<Index> = None;
             for dx in -1..=1 {
@@ -311,7 +310,8 @@ fn bbox_diagonal(points: &[DVec3]) -> f64 {
 }
 
 /// A triangle whose height is below 1e-12 of its longest edge has no area worth keeping.
-fn is_zero_area(a: DVec3, b: DVec3, c: DVec3) -> bool {
+/// Shared with `summary` so that `inspect` counts degenerate triangles by the same rule.
+pub(crate) fn is_zero_area(a: DVec3, b: DVec3, c: DVec3) -> bool {
     let cross = (b - a).cross(c - a).length();
     let longest = (b - a)
         .length_squared()
