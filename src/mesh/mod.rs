@@ -4,7 +4,11 @@ pub mod build;
 pub mod compact;
 pub mod error;
 pub mod model;
+pub mod summary;
+pub mod topology;
 
 pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};
 pub use model::{Index, Material, Mesh, Texture, Wedge};
+pub use summary::MeshSummary;
+pub use topology::{BoundaryLoop, EdgeKind, OrderedRing, Topology, TopologyCounts};
