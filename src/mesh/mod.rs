@@ -11,4 +11,4 @@ pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};
 pub use model::{Index, Material, Mesh, Texture, Wedge};
 pub use summary::MeshSummary;
-pub use topology::{BoundaryLoop, EdgeKind, OrderedRing, Topology, TopologyCounts};
+pub use topology::{BoundaryChain, EdgeKind, OrderedRing, Topology, TopologyCounts};

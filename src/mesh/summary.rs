@@ -172,14 +172,14 @@ impl fmt::Display for MeshSummary {
         count_line(f, "Wedges", c.wedges, "")?;
         count_line(f, "Texture coordinates", c.texcoords, "")?;
         count_line(f, "Edges", c.edges, "")?;
-        let loops = match c.open_boundary_chains {
-            0 => format!("  in {} loops", thousands(c.boundary_loops)),
-            open => format!(
-                "  in {} loops ({} of them open chains)",
-                thousands(c.boundary_loops),
-                thousands(open)
-            ),
-        };
+        let mut loops = format!("  in {} loops", thousands(c.boundary_loops));
+        if c.boundary_chains != c.boundary_loops || c.open_boundary_chains > 0 {
+            loops += &format!(
+                " ({} chains split at pinch vertices, {} open)",
+                thousands(c.boundary_chains),
+                thousands(c.open_boundary_chains)
+            );
+        }
         count_line(f, "Boundary edges", c.boundary_edges, &loops)?;
         count_line(f, "Components", c.components, "")?;
         count_line(f, "Non-manifold edges", c.non_manifold_edges, "")?;
@@ -262,7 +262,7 @@ fn write_load_report(f: &mut fmt::Formatter<'_>, r: &LoadReport) -> fmt::Result 
     ];
     let mut any = false;
     for (n, what) in repairs.into_iter().filter(|&(n, _)| n > 0) {
-        writeln!(f, "  {:>NUMBER$} {what}", thousands(n))?;
+        writeln!(f, "{:<LABEL$}{:>NUMBER$} {what}", "", thousands(n))?;
         any = true;
     }
     if !any {

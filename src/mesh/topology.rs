@@ -16,25 +16,28 @@
 //! # Definitions
 //! - **Boundary edge**: exactly one side; **interior manifold edge**: exactly two;
 //!   **non-manifold edge**: three or more.
-//! - **Inconsistent edge**: an edge with exactly two sides that run the same way
-//!   (both `a → b`). Non-manifold edges are never counted here.
+//! - **Inconsistent edge**: an edge along which two sides run the same way (both
+//!   `a → b`). The *count* `inconsistent_edges` counts directed edges used by more than one
+//!   triangle, so a non-manifold edge with two sides each way counts twice; this is the
+//!   definition `data/SOURCES.md` uses. On an edge with two sides both agree.
 //! - **Fan**: the corners at a vertex, grouped by "the two triangles share an interior
 //!   manifold edge at this vertex" (orientation is ignored, non-manifold edges do not
 //!   connect). A manifold interior vertex has one closed fan, a manifold boundary vertex one
 //!   open fan.
 //! - **Non-manifold vertex**: a vertex with more than one fan (a bowtie or pinch), or an
 //!   endpoint of a non-manifold edge.
-//! - **Seam edge** (`seam_edges`): an edge with two or more sides whose triangles do not
-//!   all use the same wedges at both of its ends (texture coordinate or normal differ).
+//! - **Seam edge** (`seam_edges`): an interior manifold edge whose two triangles use
+//!   different wedges at one of its ends (texture coordinate or normal differ).
 //!   **Texture seam edge** (`texture_seam_edges`): the same, comparing only the
 //!   texture-coordinate index of the wedges (a normal-only split is not a texture seam; the
 //!   loader merges bit-identical texture coordinates, so index equality is value equality).
-//!   For a non-manifold edge, "any side differs from the first" makes it a seam.
-//!   Boundary edges are never seams.
+//!   Boundary and non-manifold edges are never seams (as in `data/SOURCES.md`: "edges whose
+//!   two faces use different UVs"); non-manifold edges are reported on their own.
 //! - **Component**: triangles connected through shared vertices (so a bowtie is one
 //!   component). Numbered in the order of their lowest triangle. Vertices used by no
 //!   triangle belong to no component.
-//! - **Boundary loops**: see [`BoundaryLoop`].
+//! - **Boundary chains and loops**: see [`BoundaryChain`]. A loop is a connected piece of
+//!   the boundary (chains joined at pinch vertices), as `data/SOURCES.md` counts them.
 //! - **Euler characteristic**: `V − E + F` with `V` every vertex of the mesh.
 //!
 //! A triangle that repeats a vertex (the loader drops these) gets no edge for the side
@@ -47,7 +50,7 @@ mod ring;
 mod tests;
 mod union_find;
 
-pub use boundary::BoundaryLoop;
+pub use boundary::BoundaryChain;
 pub use ring::OrderedRing;
 
 use super::model::Mesh;
@@ -84,14 +87,18 @@ pub struct TopologyCounts {
     pub texcoords: usize,
     pub edges: usize,
     pub boundary_edges: usize,
-    /// Closed boundary loops plus open boundary chains (see [`BoundaryLoop`]).
+    /// Connected pieces of the boundary (chains sharing a vertex are one loop).
     pub boundary_loops: usize,
-    /// How many of `boundary_loops` are open chains (only near non-manifold or
-    /// inconsistently oriented edges).
+    /// Boundary walks, split at pinch vertices (see [`BoundaryChain`]); at least
+    /// `boundary_loops`.
+    pub boundary_chains: usize,
+    /// How many of `boundary_chains` are open (only near non-manifold or inconsistently
+    /// oriented edges).
     pub open_boundary_chains: usize,
     pub components: usize,
     pub non_manifold_edges: usize,
     pub non_manifold_vertices: usize,
+    /// Directed edges used by more than one triangle.
     pub inconsistent_edges: usize,
     pub seam_edges: usize,
     pub texture_seam_edges: usize,
@@ -123,7 +130,8 @@ pub struct Topology {
     corner_fans: Vec<u32>,
     vertex_flags: Vec<u8>,
     non_manifold_vertices: Vec<u32>,
-    boundary_loops: Vec<BoundaryLoop>,
+    boundary_chains: Vec<BoundaryChain>,
+    boundary_loop_count: usize,
     triangle_components: Vec<u32>,
     component_count: usize,
     boundary_edge_count: usize,
@@ -183,7 +191,8 @@ impl Topology {
             corner_fans: Vec::new(),
             vertex_flags: vec![0; vertex_count],
             non_manifold_vertices: Vec::new(),
-            boundary_loops: Vec::new(),
+            boundary_chains: Vec::new(),
+            boundary_loop_count: 0,
             triangle_components: Vec::new(),
             component_count: 0,
             boundary_edge_count: 0,
@@ -194,7 +203,7 @@ impl Topology {
         };
         topo.classify_edges_and_fans(mesh);
         topo.find_components();
-        topo.boundary_loops = boundary::trace_loops(&topo);
+        (topo.boundary_chains, topo.boundary_loop_count) = boundary::trace_chains(&topo);
         topo
     }
 
@@ -215,14 +224,16 @@ impl Topology {
                     let (t1, h1) = (s1, next_corner(s1));
                     let (t2, h2) = (s2, next_corner(s2));
                     if self.corner_vertices[t1 as usize] == self.corner_vertices[t2 as usize] {
-                        self.edge_flags[e] |= EDGE_INCONSISTENT;
-                        self.inconsistent_edge_count += 1;
                         fans.union(t1, t2);
                         fans.union(h1, h2);
                     } else {
                         fans.union(t1, h2);
                         fans.union(h1, t2);
                     }
+                    let seam = self.seam_flags(mesh, s1, s2, lo);
+                    self.edge_flags[e] |= seam;
+                    self.seam_edge_count += usize::from(seam & EDGE_SEAM != 0);
+                    self.texture_seam_edge_count += usize::from(seam & EDGE_TEXTURE_SEAM != 0);
                 }
                 _ => {
                     self.non_manifold_edge_count += 1;
@@ -231,10 +242,15 @@ impl Topology {
                 }
             }
             if sides.len() >= 2 {
-                let seam = self.seam_flags(mesh, sides, lo);
-                self.edge_flags[e] |= seam;
-                self.seam_edge_count += usize::from(seam & EDGE_SEAM != 0);
-                self.texture_seam_edge_count += usize::from(seam & EDGE_TEXTURE_SEAM != 0);
+                let forward = sides
+                    .iter()
+                    .filter(|&&s| self.corner_vertices[s as usize] == lo)
+                    .count();
+                let repeated = usize::from(forward >= 2) + usize::from(sides.len() - forward >= 2);
+                if repeated > 0 {
+                    self.edge_flags[e] |= EDGE_INCONSISTENT;
+                    self.inconsistent_edge_count += repeated;
+                }
             }
         }
 
@@ -252,9 +268,9 @@ impl Topology {
             .collect();
     }
 
-    /// Seam flags of an edge with two or more sides: compare every side's wedges at the
-    /// low and high vertex with the first side's.
-    fn seam_flags(&self, mesh: &Mesh, sides: &[u32], lo: u32) -> u8 {
+    /// Seam flags of an interior manifold edge (sides `s1`, `s2`): compare the two
+    /// triangles' wedges at the low and the high vertex.
+    fn seam_flags(&self, mesh: &Mesh, s1: u32, s2: u32, lo: u32) -> u8 {
         let wedges_at_ends = |s: u32| {
             let (tail, head) = (s, next_corner(s));
             let wedge = |c: u32| mesh.triangles[c as usize / 3][c as usize % 3];
@@ -265,16 +281,13 @@ impl Topology {
             }
         };
         let texcoord = |w: u32| mesh.wedges[w as usize].texcoord;
-        let first = wedges_at_ends(sides[0]);
+        let (first, other) = (wedges_at_ends(s1), wedges_at_ends(s2));
         let mut flags = 0;
-        for &s in &sides[1..] {
-            let other = wedges_at_ends(s);
-            if other != first {
-                flags |= EDGE_SEAM;
-            }
-            if texcoord(other.0) != texcoord(first.0) || texcoord(other.1) != texcoord(first.1) {
-                flags |= EDGE_TEXTURE_SEAM;
-            }
+        if other != first {
+            flags |= EDGE_SEAM;
+        }
+        if texcoord(other.0) != texcoord(first.0) || texcoord(other.1) != texcoord(first.1) {
+            flags |= EDGE_TEXTURE_SEAM;
         }
         flags
     }
@@ -464,17 +477,18 @@ impl Topology {
         self.edge_sides(e).len() > 2
     }
 
-    /// Two triangles run along `e` in the same direction.
+    /// Two triangles run along `e` in the same direction (also on a non-manifold edge).
     pub fn is_inconsistent_edge(&self, e: u32) -> bool {
         self.edge_flags[e as usize] & EDGE_INCONSISTENT != 0
     }
 
-    /// The triangles along `e` use different wedges at one of its ends.
+    /// `e` is an interior manifold edge whose triangles use different wedges at one end.
     pub fn is_seam_edge(&self, e: u32) -> bool {
         self.edge_flags[e as usize] & EDGE_SEAM != 0
     }
 
-    /// The triangles along `e` use different texture coordinates at one of its ends.
+    /// `e` is an interior manifold edge whose triangles use different texture coordinates
+    /// at one end.
     pub fn is_texture_seam_edge(&self, e: u32) -> bool {
         self.edge_flags[e as usize] & EDGE_TEXTURE_SEAM != 0
     }
@@ -491,9 +505,15 @@ impl Topology {
 
     // ----- global structure -----
 
-    /// Boundary loops and open boundary chains, in a fixed order.
-    pub fn boundary_loops(&self) -> &[BoundaryLoop] {
-        &self.boundary_loops
+    /// Boundary chains (closed and open), in a fixed order; chains of the same boundary
+    /// loop share [`BoundaryChain::boundary_loop`].
+    pub fn boundary_chains(&self) -> &[BoundaryChain] {
+        &self.boundary_chains
+    }
+
+    /// Connected pieces of the boundary.
+    pub fn boundary_loop_count(&self) -> usize {
+        self.boundary_loop_count
     }
 
     pub fn component_count(&self) -> usize {
@@ -523,8 +543,9 @@ impl Topology {
             texcoords: self.texcoord_count,
             edges: self.edge_count(),
             boundary_edges: self.boundary_edge_count,
-            boundary_loops: self.boundary_loops.len(),
-            open_boundary_chains: self.boundary_loops.iter().filter(|l| !l.closed).count(),
+            boundary_loops: self.boundary_loop_count,
+            boundary_chains: self.boundary_chains.len(),
+            open_boundary_chains: self.boundary_chains.iter().filter(|l| !l.closed).count(),
             components: self.component_count,
             non_manifold_edges: self.non_manifold_edge_count,
             non_manifold_vertices: self.non_manifold_vertices.len(),

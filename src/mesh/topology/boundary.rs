@@ -1,10 +1,12 @@
-//! Boundary loops: the boundary edges chained head to tail in the direction their
-//! triangle runs along them.
+//! Boundary chains: the boundary edges chained head to tail in the direction their
+//! triangle runs along them; and boundary loops: the chains grouped by shared vertices.
 
+use super::union_find::UnionFind;
 use super::{Topology, next_corner};
 use serde::Serialize;
 
-/// One chain of boundary edges, in order.
+/// One chain of boundary edges, in order: a simple closed polygon on a clean mesh, the
+/// unit hole filling works on.
 ///
 /// Each boundary edge is used by exactly one chain. Every step follows the edge's only
 /// side, from its tail to its head, so on a consistently oriented surface the surface is
@@ -21,8 +23,12 @@ use serde::Serialize;
 /// direction), the chain is *open* (`closed == false`). Open chains are listed with the
 /// loops, and are started at a vertex with more boundary edges leaving than arriving so
 /// that a chain is not cut in two.
+///
+/// A *boundary loop* (what [`TopologyCounts::boundary_loops`](super::TopologyCounts)
+/// counts, and what `data/SOURCES.md` calls loops) is a connected piece of the boundary:
+/// chains that share a vertex belong to the same loop. A bowtie's two chains are one loop.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
-pub struct BoundaryLoop {
+pub struct BoundaryChain {
     /// The vertices in walking order. A closed loop does not repeat its first vertex
     /// (`vertices.len() == edges.len()`); an open chain lists both ends
     /// (`vertices.len() == edges.len() + 1`).
@@ -31,6 +37,9 @@ pub struct BoundaryLoop {
     /// `vertices[i + 1]` (wrapping around for a closed loop).
     pub edges: Vec<u32>,
     pub closed: bool,
+    /// The boundary loop this chain belongs to; loops are numbered in order of their first
+    /// chain, so loop `k`'s first chain comes before loop `k + 1`'s.
+    pub boundary_loop: u32,
 }
 
 /// One boundary edge as walked: from `tail` to `head` along side `side`.
@@ -42,7 +51,8 @@ struct Step {
     edge: u32,
 }
 
-pub(super) fn trace_loops(topo: &Topology) -> Vec<BoundaryLoop> {
+/// The chains and the number of loops they form.
+pub(super) fn trace_chains(topo: &Topology) -> (Vec<BoundaryChain>, usize) {
     // Boundary steps sorted by tail vertex (then edge): the steps leaving a vertex are a
     // contiguous range found by binary search. No per-vertex arrays needed.
     let mut steps: Vec<Step> = topo
@@ -83,7 +93,32 @@ pub(super) fn trace_loops(topo: &Topology) -> Vec<BoundaryLoop> {
             loops.push(walk(topo, &steps, &leaving, &mut used, i));
         }
     }
-    loops
+    let loop_count = number_loops(topo.vertex_count(), &mut loops);
+    (loops, loop_count)
+}
+
+/// Groups chains that share a vertex and numbers the groups in chain order.
+fn number_loops(vertex_count: usize, chains: &mut [BoundaryChain]) -> usize {
+    if chains.is_empty() {
+        return 0;
+    }
+    let mut sets = UnionFind::new(vertex_count);
+    for chain in chains.iter() {
+        for pair in chain.vertices.windows(2) {
+            sets.union(pair[0], pair[1]);
+        }
+    }
+    let mut number_of_root = vec![u32::MAX; vertex_count];
+    let mut count = 0u32;
+    for chain in chains.iter_mut() {
+        let root = sets.find(chain.vertices[0]) as usize;
+        if number_of_root[root] == u32::MAX {
+            number_of_root[root] = count;
+            count += 1;
+        }
+        chain.boundary_loop = number_of_root[root];
+    }
+    count as usize
 }
 
 fn walk(
@@ -92,7 +127,7 @@ fn walk(
     leaving: &impl Fn(u32) -> std::ops::Range<usize>,
     used: &mut [bool],
     first: usize,
-) -> BoundaryLoop {
+) -> BoundaryChain {
     let start_vertex = steps[first].tail;
     let mut vertices = vec![start_vertex];
     let mut edges = vec![steps[first].edge];
@@ -114,10 +149,11 @@ fn walk(
         };
         vertices.push(here);
         let Some(j) = next else {
-            return BoundaryLoop {
+            return BoundaryChain {
                 vertices,
                 edges,
                 closed: false,
+                boundary_loop: 0,
             };
         };
         used[j] = true;
@@ -126,10 +162,11 @@ fn walk(
     }
 }
 
-fn closed(vertices: Vec<u32>, edges: Vec<u32>) -> BoundaryLoop {
-    BoundaryLoop {
+fn closed(vertices: Vec<u32>, edges: Vec<u32>) -> BoundaryChain {
+    BoundaryChain {
         vertices,
         edges,
         closed: true,
+        boundary_loop: 0,
     }
 }

@@ -105,7 +105,7 @@ fn single_triangle() {
     );
     assert_eq!(c.euler_characteristic, 1);
     assert_eq!(c.non_manifold_vertices + c.non_manifold_edges, 0);
-    let l = &topo.boundary_loops()[0];
+    let l = &topo.boundary_chains()[0];
     assert!(l.closed);
     assert_eq!(l.vertices, vec![0, 1, 2]);
     assert_eq!(l.edges.len(), 3);
@@ -144,7 +144,7 @@ fn two_triangles_without_seam() {
     );
     // Side 2 of triangle 0 runs 2 → 0; its opposite is side 0 of triangle 1 (0 → 2).
     assert_eq!(topo.opposite_side(2), Some(3));
-    assert_eq!(topo.boundary_loops()[0].vertices, vec![0, 1, 2, 3]);
+    assert_eq!(topo.boundary_chains()[0].vertices, vec![0, 1, 2, 3]);
     let ring = topo.ordered_ring(0).unwrap();
     assert_eq!((ring.vertices, ring.triangles), (vec![1, 2, 3], vec![0, 1]));
     let ring = topo.ordered_ring(2).unwrap();
@@ -233,7 +233,7 @@ fn flipped_triangle_in_closed_mesh() {
 }
 
 #[test]
-fn bowtie_is_a_non_manifold_vertex_with_two_loops() {
+fn bowtie_is_a_non_manifold_vertex_with_two_chains_in_one_loop() {
     let positions = [
         [0.0, 0.0, 0.0],
         [1.0, 0.0, 0.0],
@@ -249,11 +249,16 @@ fn bowtie_is_a_non_manifold_vertex_with_two_loops() {
     assert_eq!(topo.vertex_fan_count(0), 2);
     assert_eq!(
         (c.boundary_edges, c.boundary_loops, c.components),
-        (6, 2, 1)
+        (6, 1, 1)
     );
-    let loops: Vec<_> = topo.boundary_loops().iter().map(|l| &l.vertices).collect();
+    assert_eq!((c.boundary_chains, c.open_boundary_chains), (2, 0));
+    let loops: Vec<_> = topo.boundary_chains().iter().map(|l| &l.vertices).collect();
     assert_eq!(loops, vec![&vec![0, 1, 2], &vec![0, 3, 4]]);
-    assert!(topo.boundary_loops().iter().all(|l| l.closed));
+    assert!(
+        topo.boundary_chains()
+            .iter()
+            .all(|l| l.closed && l.boundary_loop == 0)
+    );
     assert_eq!(topo.ordered_ring(0), None);
     assert!(topo.ordered_ring(1).is_some());
     assert_eq!(c.euler_characteristic, 1);
@@ -269,7 +274,7 @@ fn pinched_boundary_follows_fans() {
     let topo = m.topology();
     assert_eq!(topo.non_manifold_vertices(), &[3]);
     let loops: Vec<_> = topo
-        .boundary_loops()
+        .boundary_chains()
         .iter()
         .map(|l| (l.vertices.clone(), l.closed))
         .collect();
@@ -277,6 +282,7 @@ fn pinched_boundary_follows_fans() {
         loops,
         vec![(vec![0, 3, 6, 5], true), (vec![1, 2, 3, 4], true)]
     );
+    assert_eq!(topo.boundary_loop_count(), 1);
 }
 
 #[test]
@@ -296,13 +302,30 @@ fn three_triangles_on_one_edge() {
     assert_eq!(topo.non_manifold_edges().collect::<Vec<_>>(), vec![e]);
     assert_eq!((c.non_manifold_edges, c.non_manifold_vertices), (1, 2));
     assert_eq!(topo.non_manifold_vertices(), &[0, 1]);
-    assert_eq!(c.inconsistent_edges, 0);
+    // Triangles 0 and 2 both run 0 → 1.
+    assert_eq!(c.inconsistent_edges, 1);
+    assert!(topo.is_inconsistent_edge(e));
     assert_eq!(c.boundary_edges, 6);
-    let walked: usize = topo.boundary_loops().iter().map(|l| l.edges.len()).sum();
+    let walked: usize = topo.boundary_chains().iter().map(|l| l.edges.len()).sum();
     assert_eq!(walked, 6);
-    assert_eq!((c.boundary_loops, c.open_boundary_chains), (2, 1));
+    assert_eq!(
+        (c.boundary_loops, c.boundary_chains, c.open_boundary_chains),
+        (1, 2, 1)
+    );
     assert_eq!(topo.ordered_ring(0), None);
     assert!(topo.ordered_ring(2).is_some());
+}
+
+#[test]
+fn non_manifold_edges_count_repeated_directions_and_are_never_seams() {
+    // Four triangles on edge (0, 1), two each way, each with its own texture coordinates.
+    let positions = [[0.0; 3]; 6];
+    let tris = [[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 0, 5]];
+    let uvs = [[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]];
+    let m = mesh_with_attributes(&positions, &tris, Some(&uvs), None);
+    let c = m.topology().counts();
+    assert_eq!((c.non_manifold_edges, c.inconsistent_edges), (1, 2));
+    assert_eq!((c.seam_edges, c.texture_seam_edges), (0, 0));
 }
 
 #[test]
@@ -316,7 +339,7 @@ fn square_with_hole() {
         (16, 2, 1)
     );
     assert_eq!(c.euler_characteristic, 0);
-    let loops = topo.boundary_loops();
+    let loops = topo.boundary_chains();
     assert!(loops.iter().all(|l| l.closed));
     assert_eq!(loops[0].vertices.len(), 12);
     // Outer loop counter-clockwise (surface on the left), hole clockwise.
@@ -423,18 +446,48 @@ fn check_common(m: &Mesh) -> Result<(), TestCaseError> {
 
     // Every boundary edge is walked exactly once.
     let mut walked: Vec<u32> = topo
-        .boundary_loops()
+        .boundary_chains()
         .iter()
         .flat_map(|l| l.edges.iter().copied())
         .collect();
     walked.sort_unstable();
     prop_assert_eq!(walked, topo.boundary_edges().collect::<Vec<_>>());
-    for l in topo.boundary_loops() {
+    for l in topo.boundary_chains() {
         prop_assert_eq!(l.vertices.len(), l.edges.len() + usize::from(!l.closed));
         for (i, &e) in l.edges.iter().enumerate() {
             let [a, b] = topo.edge_vertices(e);
             let (p, q) = (l.vertices[i], l.vertices[(i + 1) % l.vertices.len()]);
             prop_assert!([p.min(q), p.max(q)] == [a, b]);
+        }
+    }
+
+    // Loops are the connected pieces of the boundary-edge graph; chains sharing a vertex
+    // are in the same loop.
+    let mut piece: Vec<usize> = (0..c.vertices).collect();
+    fn root(piece: &mut [usize], mut x: usize) -> usize {
+        while piece[x] != x {
+            x = piece[x];
+        }
+        x
+    }
+    for e in topo.boundary_edges() {
+        let [a, b] = topo.edge_vertices(e);
+        let (ra, rb) = (root(&mut piece, a as usize), root(&mut piece, b as usize));
+        piece[ra] = rb;
+    }
+    let pieces: BTreeSet<usize> = topo
+        .boundary_edges()
+        .map(|e| root(&mut piece, topo.edge_vertices(e)[0] as usize))
+        .collect();
+    prop_assert_eq!(c.boundary_loops, pieces.len());
+    let mut loop_of_piece = BTreeMap::new();
+    for chain in topo.boundary_chains() {
+        for &v in &chain.vertices {
+            let r = root(&mut piece, v as usize);
+            prop_assert_eq!(
+                *loop_of_piece.entry(r).or_insert(chain.boundary_loop),
+                chain.boundary_loop
+            );
         }
     }
 
@@ -481,7 +534,7 @@ proptest! {
         let c = topo.counts();
         prop_assert_eq!(c.non_manifold_edges + c.inconsistent_edges, 0);
         prop_assert_eq!(c.open_boundary_chains, 0);
-        let walked: usize = topo.boundary_loops().iter().map(|l| l.edges.len()).sum();
+        let walked: usize = topo.boundary_chains().iter().map(|l| l.edges.len()).sum();
         prop_assert_eq!(walked, c.boundary_edges);
         // Manifold vertices form one fan; a pinch vertex is exactly a vertex with two.
         for v in 0..c.vertices as u32 {
