@@ -4,6 +4,7 @@
 
 pub mod runner;
 
+use crate::ops::fair::{FairParams, RelaxParams};
 use crate::ops::normals::NormalsParams;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -89,8 +90,8 @@ pub type PendingParams = toml::Table;
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Step {
     Crop(PendingParams),
-    Relax(PendingParams),
-    Fair(PendingParams),
+    Relax(RelaxParams),
+    Fair(FairParams),
     Smooth(PendingParams),
     Decimate(PendingParams),
     SeamFix(PendingParams),
@@ -111,12 +112,14 @@ impl Step {
     }
 
     fn is_implemented(&self) -> bool {
-        matches!(self, Step::Normals(_))
+        matches!(self, Step::Normals(_) | Step::Relax(_) | Step::Fair(_))
     }
 
     fn validate(&self) -> Result<(), String> {
         match self {
             Step::Normals(p) => p.validate(),
+            Step::Relax(p) => p.validate(),
+            Step::Fair(p) => p.validate(),
             _ => Ok(()),
         }
     }

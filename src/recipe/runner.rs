@@ -34,6 +34,8 @@ fn figures<T: serde::Serialize>(value: T) -> serde_json::Value {
 fn apply(step: &Step, mesh: &mut Mesh) -> Result<serde_json::Value, String> {
     match step {
         Step::Normals(p) => Ok(figures(ops::normals::recompute_normals(mesh, p))),
+        Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
+        Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
         other => Err(format!(
             "step kind `{}` is not implemented in this version",
             other.kind()
