@@ -117,6 +117,14 @@ fn png() -> Vec<u8> {
     bytes
 }
 
+/// (what, files of the scan (first = input), expected exit code, text the error must contain)
+type BadCase = (
+    &'static str,
+    Vec<(&'static str, Vec<u8>)>,
+    i32,
+    &'static str,
+);
+
 #[test]
 fn bad_inputs_fail_clearly_and_leave_nothing_in_out() {
     let good_ply_header = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
@@ -136,7 +144,7 @@ fn bad_inputs_fail_clearly_and_leave_nothing_in_out() {
     let garbage: Vec<u8> = (0..4096u32)
         .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
         .collect();
-    let cases: Vec<(&str, Vec<(&str, Vec<u8>)>, i32, &str)> = vec![
+    let cases: Vec<BadCase> = vec![
         (
             "empty file",
             vec![("a.obj", vec![])],
