@@ -7,12 +7,22 @@
 //! (§4.6.4).
 
 use super::curve::{self, CurveShape};
-use super::guards::{GuardCounts, guarded_move};
+use super::guards::{Fan, GuardCounts, guarded_move};
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::{self, Phase, PhaseParams, RunStats, Sweep};
 use crate::mesh::Topology;
 use glam::DVec3;
+
+/// Boundary walks shorter than this are held still. The curve step keeps a vertex on the
+/// rising branch of its curvature (§2.7.3): one sharper than 90° is moved to the other
+/// position with the same curvature, nearer its neighbours' midpoint. A regular polygon is
+/// a fixed point only when its angles are at least 90° (4 or more vertices; the thesis'
+/// "regular polygons are fixed points", §2.11.1, is wrong for the triangle, whose vertices
+/// jump inwards every iteration), and a small ragged hole has sharp corners everywhere:
+/// measured on james.obj, 3- to 6-vertex holes collapsed or blew up. Below 8 vertices a
+/// hole is a few edges across and has no noise a curve filter could remove.
+pub const MIN_CURVE_VERTICES: usize = 8;
 
 /// One boundary walk to fair as a curve.
 #[derive(Debug, Clone)]
@@ -25,13 +35,13 @@ pub struct BoundaryCurve {
 
 /// The boundary walks of the mesh as curves. A closed walk is a closed curve; an open walk
 /// (only next to inconsistently oriented or non-manifold edges) is an open curve whose ends
-/// stay (§2.9). Walks of fewer than 3 vertices are not curves the algorithm can fair and
-/// are returned as `held` instead.
+/// stay (§2.9). Walks of fewer than [`MIN_CURVE_VERTICES`] vertices are returned as `held`
+/// instead.
 pub fn boundary_curves(topo: &Topology, fixed: &[bool]) -> (Vec<BoundaryCurve>, Vec<u32>) {
     let mut curves = Vec::new();
     let mut held = Vec::new();
     for chain in topo.boundary_chains() {
-        if chain.vertices.len() < 3 {
+        if chain.vertices.len() < MIN_CURVE_VERTICES {
             held.extend_from_slice(&chain.vertices);
             continue;
         }
@@ -54,6 +64,7 @@ pub fn fair_boundary_curve(
     curve: &BoundaryCurve,
     params: &PhaseParams,
     epsilon: f64,
+    input_normals: &[DVec3],
     guards: &mut GuardCounts,
 ) -> RunStats {
     let mut pts: Vec<DVec3> = curve
@@ -79,6 +90,7 @@ pub fn fair_boundary_curve(
         return RunStats::default();
     }
     let mut buf = Vec::new();
+    let mut nbuf = Vec::new();
     schedule::run(params, scale, |phase| {
         let candidates = match phase {
             Phase::Curvature => curve::curvature_sweep(&pts, shape, params.lambda, eps),
@@ -93,7 +105,14 @@ pub fn fair_boundary_curve(
             }
             buf.clear();
             buf.extend(nb.ring(v).iter().map(|&j| positions[j as usize]));
-            let (p, g) = guarded_move(old, candidate, &buf, nb.is_closed(v));
+            nbuf.clear();
+            nbuf.extend(nb.fan(v).iter().map(|&t| input_normals[t as usize]));
+            let fan = Fan {
+                ring: &buf,
+                closed: nb.is_closed(v),
+                input_normals: &nbuf,
+            };
+            let (p, g) = guarded_move(old, candidate, fan);
             guards.record(g);
             positions[v] = p;
             pts[i] = p;
@@ -145,12 +164,14 @@ mod tests {
             max_iterations: 200,
             ..PhaseParams::curve()
         };
+        let normals = super::super::guards::triangle_normals(&m, &m.positions);
         let stats = fair_boundary_curve(
             &mut m.positions,
             &nb,
             &curves[0],
             &params,
             1e-4,
+            &normals,
             &mut guards,
         );
         assert!(stats.iterations > 0);

@@ -15,6 +15,9 @@ pub struct Neighbourhood {
     /// CSR offsets into `ring`, one row per vertex (empty for vertices without a ring).
     offsets: Vec<u32>,
     ring: Vec<u32>,
+    /// CSR of the fan triangles: `fan[i]` has corners `v`, `ring[i]`, `ring[i + 1]`.
+    fan_offsets: Vec<u32>,
+    fan: Vec<u32>,
     /// Per ring slot: +1 if the neighbour's closed ring runs the same way round the
     /// triangles they share as this ring, −1 if opposite, 0 if the neighbour has no closed
     /// ring (boundary, non-manifold: excluded from H̄, (4.1)–(4.3)).
@@ -28,26 +31,32 @@ pub struct Neighbourhood {
 impl Neighbourhood {
     pub fn new(topo: &Topology) -> Self {
         let n = topo.vertex_count();
-        let rings: Vec<Option<(Vec<u32>, bool)>> = (0..n as u32)
+        let rings: Vec<Option<crate::mesh::OrderedRing>> = (0..n as u32)
             .into_par_iter()
-            .map(|v| topo.ordered_ring(v).map(|r| (r.vertices, r.closed)))
+            .map(|v| topo.ordered_ring(v))
             .collect();
         let mut offsets = Vec::with_capacity(n + 1);
         offsets.push(0u32);
+        let mut fan_offsets = offsets.clone();
         let mut ring = Vec::new();
+        let mut fan = Vec::new();
         let mut closed = vec![false; n];
         let mut manifold = vec![false; n];
         for (v, r) in rings.into_iter().enumerate() {
-            if let Some((verts, c)) = r {
-                ring.extend_from_slice(&verts);
-                closed[v] = c;
+            if let Some(r) = r {
+                ring.extend_from_slice(&r.vertices);
+                fan.extend_from_slice(&r.triangles);
+                closed[v] = r.closed;
                 manifold[v] = true;
             }
             offsets.push(ring.len() as u32);
+            fan_offsets.push(fan.len() as u32);
         }
         let mut nb = Neighbourhood {
             offsets,
             ring,
+            fan_offsets,
+            fan,
             orient: Vec::new(),
             closed,
             manifold,
@@ -100,6 +109,12 @@ impl Neighbourhood {
     #[inline]
     pub fn ring(&self, v: usize) -> &[u32] {
         &self.ring[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+    }
+
+    /// The fan triangles of `v`, in ring order (one fewer than the ring when open).
+    #[inline]
+    pub fn fan(&self, v: usize) -> &[u32] {
+        &self.fan[self.fan_offsets[v] as usize..self.fan_offsets[v + 1] as usize]
     }
 
     #[inline]

@@ -7,10 +7,11 @@
 //! derives it. Positions are taken relative to the vertex (`x_i = a_i - a`): the formulas
 //! are translation invariant and this keeps them accurate far from the origin.
 
-use super::guards::{GuardCounts, Guarded, MoveCheck, check_triangle, guarded_move};
+use super::guards::{Fan, GuardCounts, Guarded, MoveCheck, check_triangle, guarded_move};
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::Sweep;
+use crate::mesh::Topology;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
@@ -205,9 +206,20 @@ pub struct Interior<'a> {
     pub movable_count: usize,
     /// Every triangle's vertices, for the fast sweep's global flip check.
     pub triangles: &'a [[u32; 3]],
+    /// For the triangles around a vertex.
+    pub topo: &'a Topology,
+    /// Every triangle's input normal: no move may turn a triangle over from it.
+    pub input_normals: &'a [DVec3],
     /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
     /// length: fairing.md pitfall 21, an absolute 1e-4 in 1/length would depend on units).
     pub eps: f64,
+}
+
+/// The input normals of `v`'s fan triangles.
+#[inline]
+fn gather_normals(it: &Interior, v: usize, buf: &mut Vec<DVec3>) {
+    buf.clear();
+    buf.extend(it.nb.fan(v).iter().map(|&t| it.input_normals[t as usize]));
 }
 
 #[inline]
@@ -301,7 +313,13 @@ pub fn thesis_curvature_sweep(
             continue;
         };
         gather(positions, ring, &mut buf);
-        let (p, g) = guarded_move(a, candidate, &buf, true);
+        gather_normals(it, v, &mut nbuf);
+        let fan = Fan {
+            ring: &buf,
+            closed: true,
+            input_normals: &nbuf,
+        };
+        let (p, g) = guarded_move(a, candidate, fan);
         guards.record(g);
         positions[v] = p;
         let d = (p - a).length();
@@ -323,15 +341,22 @@ pub fn thesis_nonuniformity_sweep(
     guards: &mut GuardCounts,
 ) -> Sweep {
     let mut buf = Vec::new();
+    let mut nbuf = Vec::new();
     let (mut sum, mut max) = (0.0, 0.0f64);
     for v in 0..positions.len() {
         if !it.movable[v] {
             continue;
         }
         gather(positions, it.nb.ring(v), &mut buf);
+        gather_normals(it, v, &mut nbuf);
         let a = positions[v];
         let candidate = a + lambda_u * nonuniformity(a, &buf);
-        let (p, g) = guarded_move(a, candidate, &buf, true);
+        let fan = Fan {
+            ring: &buf,
+            closed: true,
+            input_normals: &nbuf,
+        };
+        let (p, g) = guarded_move(a, candidate, fan);
         guards.record(g);
         positions[v] = p;
         let d = (p - a).length();
@@ -345,6 +370,18 @@ pub fn thesis_nonuniformity_sweep(
     }
 }
 
+/// Reusable buffers of the fast sweeps (no allocation per iteration).
+#[derive(Debug, Default)]
+pub struct FastScratch {
+    curv: Vec<Sided>,
+    candidate: Vec<DVec3>,
+    new: Vec<DVec3>,
+    /// How many times a vertex's move was halved this iteration (3 = put back).
+    level: Vec<u8>,
+    /// Why it was first shortened.
+    why: Vec<MoveCheck>,
+}
+
 /// One curvature iteration of the fast schedule: Jacobi (every vertex from the positions
 /// at the start of the iteration), in parallel; deterministic whatever the thread count
 /// since every vertex is computed on its own and reductions run in a fixed order.
@@ -353,39 +390,44 @@ pub fn fast_curvature_sweep(
     it: &Interior,
     lambda: f64,
     guards: &mut GuardCounts,
+    scratch: &mut FastScratch,
 ) -> Sweep {
     let nb = it.nb;
     let old: &[DVec3] = positions;
-    let curv: Vec<Sided> = (0..old.len())
-        .into_par_iter()
-        .map_init(Vec::new, |buf, v| {
-            if nb.is_closed(v) {
+    scratch.curv.resize(old.len(), Sided::default());
+    scratch
+        .curv
+        .par_iter_mut()
+        .enumerate()
+        .for_each_init(Vec::new, |buf, (v, c)| {
+            *c = if nb.is_closed(v) {
                 sided(old, nb, v, buf)
             } else {
                 Sided::default()
-            }
-        })
-        .collect();
-    let candidates: Vec<(DVec3, Guarded)> = (0..old.len())
-        .into_par_iter()
-        .map_init(Vec::new, |buf, v| {
+            };
+        });
+    let curv = &scratch.curv;
+    scratch.candidate.resize(old.len(), DVec3::ZERO);
+    scratch
+        .candidate
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(v, out)| {
             let a = old[v];
+            *out = a;
             if !it.movable[v] {
-                return (a, Guarded::Full);
+                return;
             }
             let own = &curv[v];
             let hbar =
                 mean_neighbour_curvature(own.side, nb.ring(v), nb.orientations(v), |j| curv[j]);
-            match curvature_target(a, own, hbar, lambda, it.eps) {
-                None => (a, Guarded::Full),
-                Some(c) => {
-                    gather(old, nb.ring(v), buf);
-                    guarded_move(a, c, buf, true)
-                }
+            if let Some(c) = curvature_target(a, own, hbar, lambda, it.eps)
+                && c.is_finite()
+            {
+                *out = c;
             }
-        })
-        .collect();
-    commit_parallel(positions, candidates, it, guards)
+        });
+    commit_parallel(positions, it, guards, scratch)
 }
 
 /// One non-uniformity iteration of the fast schedule (Jacobi, parallel).
@@ -394,65 +436,121 @@ pub fn fast_nonuniformity_sweep(
     it: &Interior,
     lambda_u: f64,
     guards: &mut GuardCounts,
+    scratch: &mut FastScratch,
 ) -> Sweep {
     let nb = it.nb;
     let old: &[DVec3] = positions;
-    let candidates: Vec<(DVec3, Guarded)> = (0..old.len())
-        .into_par_iter()
-        .map_init(Vec::new, |buf, v| {
+    scratch.candidate.resize(old.len(), DVec3::ZERO);
+    scratch
+        .candidate
+        .par_iter_mut()
+        .enumerate()
+        .for_each_init(Vec::new, |buf, (v, out)| {
             let a = old[v];
-            if !it.movable[v] {
-                return (a, Guarded::Full);
+            *out = a;
+            if it.movable[v] {
+                gather(old, nb.ring(v), buf);
+                let c = a + lambda_u * nonuniformity(a, buf);
+                if c.is_finite() {
+                    *out = c;
+                }
             }
-            gather(old, nb.ring(v), buf);
-            guarded_move(a, a + lambda_u * nonuniformity(a, buf), buf, true)
-        })
-        .collect();
-    commit_parallel(positions, candidates, it, guards)
+        });
+    commit_parallel(positions, it, guards, scratch)
 }
 
 /// Vertices per chunk of the fixed-order parallel reductions.
 const CHUNK: usize = 4096;
 
-/// Writes the candidates, each already safe against its still ring. Neighbours moving
-/// together can still flip a shared triangle: such triangles' vertices are put back
-/// (counted as avoided flips / degenerations) until no triangle is bad.
+/// Triangles that a move from `old` to `new` flips or degenerates, in index order.
+fn bad_triangles(
+    old: &[DVec3],
+    new: &[DVec3],
+    triangles: impl IndexedParallelIterator<Item = u32>,
+    it: &Interior,
+) -> Vec<(u32, MoveCheck)> {
+    triangles
+        .filter_map(|t| {
+            let [a, b, c] = it.triangles[t as usize].map(|v| v as usize);
+            if new[a] == old[a] && new[b] == old[b] && new[c] == old[c] {
+                return None;
+            }
+            let input = it.input_normals[t as usize];
+            match check_triangle([old[a], old[b], old[c]], [new[a], new[b], new[c]], input) {
+                MoveCheck::Ok => None,
+                bad => Some((t, bad)),
+            }
+        })
+        .collect()
+}
+
+/// Writes the candidate moves, shortened where they would flip or degenerate a triangle
+/// (the same rule as [`guarded_move`], applied to all vertices at once): every moved
+/// vertex of a bad triangle has its move halved, up to twice, then put back, and the
+/// triangles around it are checked again, until no triangle is bad. Each pass is a
+/// parallel filter with an ordered result, so the outcome does not depend on threads.
 fn commit_parallel(
     positions: &mut [DVec3],
-    candidates: Vec<(DVec3, Guarded)>,
     it: &Interior,
     guards: &mut GuardCounts,
+    scratch: &mut FastScratch,
 ) -> Sweep {
-    for (_, g) in &candidates {
-        guards.record(*g);
-    }
-    let mut new: Vec<DVec3> = candidates.into_iter().map(|(p, _)| p).collect();
-    loop {
-        let old: &[DVec3] = positions;
-        // Parallel filter + ordered collect: the same list whatever the thread count.
-        let bad: Vec<(usize, MoveCheck)> = it
-            .triangles
-            .par_iter()
-            .enumerate()
-            .filter_map(|(t, &[a, b, c])| {
-                let (a, b, c) = (a as usize, b as usize, c as usize);
-                if new[a] == old[a] && new[b] == old[b] && new[c] == old[c] {
-                    return None;
+    let n = positions.len();
+    let FastScratch {
+        candidate,
+        new,
+        level,
+        why,
+        ..
+    } = scratch;
+    new.clear();
+    new.extend_from_slice(candidate);
+    level.clear();
+    level.resize(n, 0);
+    why.clear();
+    why.resize(n, MoveCheck::Ok);
+    let old: &[DVec3] = positions;
+    let all = (0..it.triangles.len() as u32).into_par_iter();
+    let mut bad = bad_triangles(old, new, all, it);
+    let mut touched: Vec<u32> = Vec::new();
+    while !bad.is_empty() {
+        touched.clear();
+        for &(t, reason) in &bad {
+            for v in it.triangles[t as usize] {
+                let vi = v as usize;
+                if new[vi] != old[vi] {
+                    touched.push(v);
+                    if why[vi] == MoveCheck::Ok {
+                        why[vi] = reason;
+                    }
                 }
-                match check_triangle([old[a], old[b], old[c]], [new[a], new[b], new[c]]) {
-                    MoveCheck::Ok => None,
-                    bad => Some((t, bad)),
-                }
-            })
-            .collect();
-        if bad.is_empty() {
-            break;
-        }
-        for (t, why) in bad {
-            guards.record(Guarded::Skipped(why));
-            for v in it.triangles[t] {
-                new[v as usize] = old[v as usize];
             }
+        }
+        touched.sort_unstable();
+        touched.dedup();
+        for &v in &touched {
+            let vi = v as usize;
+            level[vi] += 1;
+            let f = match level[vi] {
+                1 => 0.5,
+                2 => 0.25,
+                _ => 0.0,
+            };
+            new[vi] = old[vi] + f * (candidate[vi] - old[vi]);
+        }
+        let mut around: Vec<u32> = touched
+            .iter()
+            .flat_map(|&v| it.topo.vertex_triangles(v))
+            .collect();
+        around.sort_unstable();
+        around.dedup();
+        bad = bad_triangles(old, new, around.into_par_iter(), it);
+    }
+    for (l, w) in level.iter().zip(why.iter()) {
+        match *l {
+            0 => {}
+            1 | 2 => guards.record(Guarded::Shortened(*w)),
+            _ => guards.record(Guarded::Skipped(*w)),
         }
     }
     let partial: Vec<(f64, f64)> = new
@@ -468,7 +566,7 @@ fn commit_parallel(
     let (sum, max) = partial
         .into_iter()
         .fold((0.0, 0.0f64), |(s, m), (a, b)| (s + a, m.max(b)));
-    positions.copy_from_slice(&new);
+    positions.copy_from_slice(new);
     Sweep {
         mean: sum / it.movable_count.max(1) as f64,
         max,
