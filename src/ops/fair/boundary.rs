@@ -7,7 +7,7 @@
 //! (§4.6.4).
 
 use super::curve::{self, CurveShape};
-use super::guards::{Fan, GuardCounts, guarded_move};
+use super::guards::{Fan, GuardCounts, Reference, guarded_move};
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::{self, Phase, PhaseParams, RunStats, Sweep};
@@ -64,7 +64,7 @@ pub fn fair_boundary_curve(
     curve: &BoundaryCurve,
     params: &PhaseParams,
     epsilon: f64,
-    input_normals: &[DVec3],
+    references: &[Reference],
     guards: &mut GuardCounts,
 ) -> RunStats {
     let mut pts: Vec<DVec3> = curve
@@ -106,11 +106,11 @@ pub fn fair_boundary_curve(
             buf.clear();
             buf.extend(nb.ring(v).iter().map(|&j| positions[j as usize]));
             nbuf.clear();
-            nbuf.extend(nb.fan(v).iter().map(|&t| input_normals[t as usize]));
+            nbuf.extend(nb.fan(v).iter().map(|&t| references[t as usize]));
             let fan = Fan {
                 ring: &buf,
                 closed: nb.is_closed(v),
-                input_normals: &nbuf,
+                references: &nbuf,
             };
             let (p, g) = guarded_move(old, candidate, fan);
             guards.record(g);
@@ -164,7 +164,7 @@ mod tests {
             max_iterations: 200,
             ..PhaseParams::curve()
         };
-        let normals = super::super::guards::triangle_normals(&m, &m.positions);
+        let normals = super::super::guards::triangle_references(&m, &topo, &m.positions);
         let stats = fair_boundary_curve(
             &mut m.positions,
             &nb,
@@ -176,7 +176,7 @@ mod tests {
         );
         assert!(stats.iterations > 0);
         assert_eq!(
-            super::super::guards::flipped_triangles(&m, &before, &m.positions),
+            super::super::guards::turned_over(&m, &normals, &m.positions).0,
             0
         );
         // The jag (the alternating part of the second difference across the bottom side)

@@ -129,6 +129,12 @@ pub fn curvature_sweep(pts: &[DVec3], shape: CurveShape, lambda: f64, eps: f64) 
             }
             let hbar = if count > 0.0 { sum / count } else { 0.0 };
             let target = (1.0 - lambda) * hi + lambda * hbar;
+            // H^{k+1} = H^k: stay (α = 0 solves (2.27)). The rising-branch rule would move a
+            // vertex sharper than 90° even then, so the regular triangle would not be the
+            // fixed point §2.11.1 says every regular polygon is (see surface.rs).
+            if (target - hi).abs() < eps {
+                return pts[i];
+            }
             let mid = 0.5 * (pts[p] + pts[q]);
             // §2.7.4 special case 2: H^{k+1} = 0 gives α = −1/2, the midpoint.
             let t = if target.abs() < eps {

@@ -13,13 +13,22 @@ use serde::Serialize;
 /// below which a move may not push a triangle, unless it improves it.
 pub const MIN_QUALITY: f64 = 0.05;
 
-/// How far a step may turn a triangle from its orientation at the start of the step.
-/// 45° so that two steps (`relax` then
-/// `fair`) together never turn a triangle over: measured on james.obj and the ggg_sfm
-/// scans, each step alone turned no triangle over, but relax + fair turned 34 to 99
-/// border triangles by more than 90° with a 90° limit per step.
-pub const MAX_TILT_DEGREES: f64 = 45.0;
-const MAX_TILT_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
+/// How far a step may turn a triangle from its orientation at the start of the step
+/// (unless it starts folded over against its neighbours). 45° so that two steps (`relax`
+/// then `fair`) together never turn a triangle over: measured on james.obj and the
+/// ggg_sfm scans, each step alone turned no triangle over with a 90° limit, but relax +
+/// fair together turned 34 to 99 triangles (mostly at the borders, whose curves are faired
+/// in 3D without regard to the surface) by more than 90°.
+pub const TILT_DEGREES: f64 = 45.0;
+const TILT_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// What a triangle may not turn away from in one step: its normal at the start of the step
+/// (zero = unknown, no limit), by 90°, or by [`TILT_DEGREES`] when `tight`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Reference {
+    pub normal: DVec3,
+    pub tight: bool,
+}
 
 /// Why the vertices that stay fixed do.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -109,18 +118,17 @@ fn quality_squared(cross: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
     }
 }
 
-/// Checks triangle `(a, b, c)` → `(a2, b2, c2)`. `input` is the triangle's normal at the
-/// start of the step (any length; zero = unknown): the triangle may not leave the cone of
-/// [`MAX_TILT_DEGREES`] around it, so no sequence of small moves turns a triangle over
-/// either.
+/// Checks triangle `(a, b, c)` → `(a2, b2, c2)`. Besides the single move, the triangle may
+/// not leave the cone of its [`Reference`], so no sequence of small moves within a step
+/// turns it over either.
 #[inline]
-pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], input: DVec3) -> MoveCheck {
+pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) -> MoveCheck {
     let n_old = (old[1] - old[0]).cross(old[2] - old[0]);
     let n_new = (new[1] - new[0]).cross(new[2] - new[0]);
     if n_old.length_squared() > 0.0 && n_new.dot(n_old) < 0.0 {
         return MoveCheck::Flip;
     }
-    if within_cone(n_old, input) && !within_cone(n_new, input) {
+    if within_cone(n_old, reference) && !within_cone(n_new, reference) {
         return MoveCheck::Flip;
     }
     let q_new = quality_squared(n_new, new[0], new[1], new[2]);
@@ -130,22 +138,25 @@ pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], input: DVec3) -> MoveChe
     MoveCheck::Ok
 }
 
-/// `n` is within [`MAX_TILT_DEGREES`] of `input`; true when either is zero (an unknown
-/// input has no cone; a degenerate triangle is the quality test's business).
+/// `n` is within the reference's cone; true when either vector is zero (an unknown
+/// reference has no cone; a degenerate triangle is the quality test's business).
 #[inline]
-fn within_cone(n: DVec3, input: DVec3) -> bool {
-    let d = n.dot(input);
-    let cos2 = MAX_TILT_COS * MAX_TILT_COS;
-    d >= 0.0 && d * d >= cos2 * n.length_squared() * input.length_squared()
+fn within_cone(n: DVec3, reference: Reference) -> bool {
+    let d = n.dot(reference.normal);
+    if !reference.tight {
+        return d >= 0.0;
+    }
+    let cos2 = TILT_COS * TILT_COS;
+    d >= 0.0 && d * d >= cos2 * n.length_squared() * reference.normal.length_squared()
 }
 
-/// A fan as the guards see it: the ring positions, closed or open, and the input normals
-/// of its triangles `(a, ring[i], ring[i+1])` (empty = unknown).
+/// A fan as the guards see it: the ring positions, closed or open, and the references of
+/// its triangles `(a, ring[i], ring[i+1])` (empty = unknown).
 #[derive(Debug, Clone, Copy)]
 pub struct Fan<'a> {
     pub ring: &'a [DVec3],
     pub closed: bool,
-    pub input_normals: &'a [DVec3],
+    pub references: &'a [Reference],
 }
 
 /// Checks moving the centre of a fan from `old` to `new`, its ring held still.
@@ -156,8 +167,8 @@ pub fn check_fan(old: DVec3, new: DVec3, fan: Fan) -> MoveCheck {
     let mut worst = MoveCheck::Ok;
     for i in 0..tris {
         let (p, q) = (ring[i], ring[(i + 1) % n]);
-        let input = fan.input_normals.get(i).copied().unwrap_or(DVec3::ZERO);
-        match check_triangle([old, p, q], [new, p, q], input) {
+        let reference = fan.references.get(i).copied().unwrap_or_default();
+        match check_triangle([old, p, q], [new, p, q], reference) {
             MoveCheck::Ok => {}
             MoveCheck::Flip => return MoveCheck::Flip,
             MoveCheck::Degenerate => worst = MoveCheck::Degenerate,
@@ -231,26 +242,52 @@ impl GuardCounts {
     }
 }
 
-/// Every triangle's normal (cross product) at `positions`.
-pub fn triangle_normals(mesh: &Mesh, positions: &[DVec3]) -> Vec<DVec3> {
-    (0..mesh.triangles.len())
+/// Every triangle's reference for a step starting at `positions`: its normal there, with
+/// the tight cone unless the triangle is folded over against its edge neighbours (its
+/// normal opposes the sum of theirs), which fairing should be free to undo.
+pub fn triangle_references(mesh: &Mesh, topo: &Topology, positions: &[DVec3]) -> Vec<Reference> {
+    let normals: Vec<DVec3> = (0..mesh.triangles.len())
         .map(|t| {
             let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
             (b - a).cross(c - a)
         })
+        .collect();
+    (0..mesh.triangles.len())
+        .map(|t| {
+            let mut around = DVec3::ZERO;
+            for e in topo.triangle_edges(t as u32) {
+                if e == crate::mesh::topology::NO_EDGE {
+                    continue;
+                }
+                for u in topo.edge_triangles(e) {
+                    if u as usize != t {
+                        around += normals[u as usize].normalize_or_zero();
+                    }
+                }
+            }
+            Reference {
+                normal: normals[t],
+                tight: normals[t].dot(around) >= 0.0,
+            }
+        })
         .collect()
 }
 
-/// Triangles whose normal turned by more than 90° from `reference` (the input).
-pub fn flipped_triangles(mesh: &Mesh, reference: &[DVec3], positions: &[DVec3]) -> usize {
-    (0..mesh.triangles.len())
-        .filter(|&t| {
-            let [a, b, c] = mesh.triangle_vertices(t).map(|v| v as usize);
-            let n0 = (reference[b] - reference[a]).cross(reference[c] - reference[a]);
-            let n1 = (positions[b] - positions[a]).cross(positions[c] - positions[a]);
-            n0.length_squared() > 0.0 && n0.dot(n1) < 0.0
-        })
-        .count()
+/// Triangles whose normal ends more than 90° from its reference, split into those that
+/// were folded over in the input (undone: `.1`) and the others (turned over: `.0`).
+pub fn turned_over(mesh: &Mesh, references: &[Reference], positions: &[DVec3]) -> (usize, usize) {
+    let mut counts = (0, 0);
+    for (t, r) in references.iter().enumerate() {
+        let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
+        if r.normal.length_squared() > 0.0 && (b - a).cross(c - a).dot(r.normal) < 0.0 {
+            if r.tight {
+                counts.0 += 1;
+            } else {
+                counts.1 += 1;
+            }
+        }
+    }
+    counts
 }
 
 #[cfg(test)]
@@ -263,7 +300,7 @@ mod tests {
         let fan = Fan {
             ring: &ring,
             closed: true,
-            input_normals: &[],
+            references: &[],
         };
         let c = DVec3::ZERO;
         assert_eq!(check_fan(c, DVec3::new(0.1, 0.1, 0.2), fan), MoveCheck::Ok);
@@ -282,10 +319,25 @@ mod tests {
         assert!((p.x - 0.75).abs() < 1e-12);
         let (p, g) = guarded_move(c, DVec3::new(9.0, 0.0, 0.0), fan);
         assert_eq!((p, g), (c, Guarded::Skipped(MoveCheck::Flip)));
-        // Against the input normal: turning 60° away from it leaves the 45° cone.
+        // Against the reference: turning 60° away from it leaves the tight cone.
         let old = [DVec3::ZERO, DVec3::X, DVec3::Y];
         let new = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, 0.5, 0.75f64.sqrt())];
-        assert_eq!(check_triangle(old, new, DVec3::ZERO), MoveCheck::Ok);
-        assert_eq!(check_triangle(old, new, DVec3::Z), MoveCheck::Flip);
+        let interior = Reference {
+            normal: DVec3::Z,
+            tight: false,
+        };
+        let border = Reference {
+            tight: true,
+            ..interior
+        };
+        assert_eq!(
+            check_triangle(old, new, Reference::default()),
+            MoveCheck::Ok
+        );
+        assert_eq!(check_triangle(old, new, interior), MoveCheck::Ok);
+        assert_eq!(check_triangle(old, new, border), MoveCheck::Flip);
+        // 100° in steps of less than 90°: caught by the hemisphere.
+        let far = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, -0.17, 0.98)];
+        assert_eq!(check_triangle(new, far, interior), MoveCheck::Flip);
     }
 }

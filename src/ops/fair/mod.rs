@@ -327,8 +327,12 @@ pub struct FairReport {
     pub degenerate_avoided: u64,
     /// Of those, moves skipped entirely.
     pub moves_skipped: u64,
-    /// Triangles whose normal ends more than 90° from its input direction.
+    /// Triangles whose normal ends more than 90° from its input direction (0: the guards
+    /// forbid it), not counting folds undone.
     pub flipped_vs_input: usize,
+    /// Triangles folded over against their neighbours in the input that ended turned
+    /// back.
+    pub folds_undone: usize,
     pub fixed: FixedCounts,
     pub valence_limit: u32,
     pub vertex_updates: u64,
@@ -415,7 +419,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         }
     }
 
-    let input_normals = guards::triangle_normals(mesh, &input);
+    let references = guards::triangle_references(mesh, &topo, &input);
     let mut positions = std::mem::take(&mut mesh.positions);
     let mut guard_counts = GuardCounts::default();
     let mut movable_total = 0usize;
@@ -434,7 +438,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
                 c,
                 &plan.curve,
                 plan.epsilon,
-                &input_normals,
+                &references,
                 &mut guard_counts,
             );
             report.boundary_iterations = report.boundary_iterations.max(s.iterations);
@@ -466,7 +470,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         movable_count,
         triangles: &triangles,
         topo: &topo,
-        input_normals: &input_normals,
+        references: &references,
         eps: plan.epsilon / scale,
     };
     let (params, m) = match plan.schedule {
@@ -528,7 +532,8 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
     report.flips_avoided = guard_counts.flips_avoided;
     report.degenerate_avoided = guard_counts.degenerate_avoided;
     report.moves_skipped = guard_counts.skipped;
-    report.flipped_vs_input = guards::flipped_triangles(mesh, &input, &mesh.positions);
+    (report.flipped_vs_input, report.folds_undone) =
+        guards::turned_over(mesh, &references, &mesh.positions);
     let secs = start.elapsed().as_secs_f64();
     report.time_ms = secs * 1e3;
     report.updates_per_second = if secs > 0.0 {

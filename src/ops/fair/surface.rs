@@ -7,7 +7,9 @@
 //! derives it. Positions are taken relative to the vertex (`x_i = a_i - a`): the formulas
 //! are translation invariant and this keeps them accurate far from the origin.
 
-use super::guards::{Fan, GuardCounts, Guarded, MoveCheck, check_triangle, guarded_move};
+use super::guards::{
+    Fan, GuardCounts, Guarded, MoveCheck, Reference, check_triangle, guarded_move,
+};
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::Sweep;
@@ -208,18 +210,18 @@ pub struct Interior<'a> {
     pub triangles: &'a [[u32; 3]],
     /// For the triangles around a vertex.
     pub topo: &'a Topology,
-    /// Every triangle's input normal: no move may turn a triangle over from it.
-    pub input_normals: &'a [DVec3],
+    /// Every triangle's reference orientation (see [`Reference`]).
+    pub references: &'a [Reference],
     /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
     /// length: fairing.md pitfall 21, an absolute 1e-4 in 1/length would depend on units).
     pub eps: f64,
 }
 
-/// The input normals of `v`'s fan triangles.
+/// The references of `v`'s fan triangles.
 #[inline]
-fn gather_normals(it: &Interior, v: usize, buf: &mut Vec<DVec3>) {
+fn gather_references(it: &Interior, v: usize, buf: &mut Vec<Reference>) {
     buf.clear();
-    buf.extend(it.nb.fan(v).iter().map(|&t| it.input_normals[t as usize]));
+    buf.extend(it.nb.fan(v).iter().map(|&t| it.references[t as usize]));
 }
 
 #[inline]
@@ -252,6 +254,14 @@ fn curvature_target(a: DVec3, own: &Sided, hbar: f64, lambda: f64, eps: f64) -> 
     }
     let to_min = own.c.to_minimiser?; // singular B (degenerate fan): no step defined
     let target = (1.0 - lambda) * h + lambda * hbar;
+    // H^{k+1} = H^k: α = 0 is a root of (3.31) and the vertex stays. The thesis' rule takes
+    // the root on the rising branch (§3.6.3), which for a vertex beyond the curvature peak
+    // is the other one: the regular tetrahedron (P = 0.89) and octahedron (P = 0.67) would
+    // then move, although §3.8.1 reports every regular polyhedron unchanged. Correctness
+    // wins: a vertex whose curvature already has its target value does not move.
+    if (target - h).abs() < eps {
+        return None;
+    }
     // §3.6.4 case 2: H^{k+1} = 0 → α = −1, the vertex jumps to a*.
     let t = if target.abs() < eps {
         0.0
@@ -298,6 +308,7 @@ pub fn thesis_curvature_sweep(
 ) -> Sweep {
     let mut buf = Vec::new();
     let mut nbuf = Vec::new();
+    let mut rbuf = Vec::new();
     let (mut sum, mut max) = (0.0, 0.0f64);
     for v in 0..positions.len() {
         if !it.movable[v] {
@@ -313,11 +324,11 @@ pub fn thesis_curvature_sweep(
             continue;
         };
         gather(positions, ring, &mut buf);
-        gather_normals(it, v, &mut nbuf);
+        gather_references(it, v, &mut rbuf);
         let fan = Fan {
             ring: &buf,
             closed: true,
-            input_normals: &nbuf,
+            references: &rbuf,
         };
         let (p, g) = guarded_move(a, candidate, fan);
         guards.record(g);
@@ -341,20 +352,20 @@ pub fn thesis_nonuniformity_sweep(
     guards: &mut GuardCounts,
 ) -> Sweep {
     let mut buf = Vec::new();
-    let mut nbuf = Vec::new();
+    let mut rbuf = Vec::new();
     let (mut sum, mut max) = (0.0, 0.0f64);
     for v in 0..positions.len() {
         if !it.movable[v] {
             continue;
         }
         gather(positions, it.nb.ring(v), &mut buf);
-        gather_normals(it, v, &mut nbuf);
+        gather_references(it, v, &mut rbuf);
         let a = positions[v];
         let candidate = a + lambda_u * nonuniformity(a, &buf);
         let fan = Fan {
             ring: &buf,
             closed: true,
-            input_normals: &nbuf,
+            references: &rbuf,
         };
         let (p, g) = guarded_move(a, candidate, fan);
         guards.record(g);
@@ -475,8 +486,12 @@ fn bad_triangles(
             if new[a] == old[a] && new[b] == old[b] && new[c] == old[c] {
                 return None;
             }
-            let input = it.input_normals[t as usize];
-            match check_triangle([old[a], old[b], old[c]], [new[a], new[b], new[c]], input) {
+            let reference = it.references[t as usize];
+            match check_triangle(
+                [old[a], old[b], old[c]],
+                [new[a], new[b], new[c]],
+                reference,
+            ) {
                 MoveCheck::Ok => None,
                 bad => Some((t, bad)),
             }
