@@ -184,6 +184,7 @@ mod tests {
                 size: None,
             }),
             other_statements: vec![],
+            source_dir: None,
         });
         m
     }
