@@ -1,6 +1,8 @@
 //! scanmill: unattended processing of 3D scans. See DESIGN.md for the architecture.
 
+pub mod config;
 pub mod mesh;
 pub mod ops;
 pub mod recipe;
 pub mod report;
+pub mod store;
