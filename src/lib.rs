@@ -1,6 +1,7 @@
 //! scanmill: unattended processing of 3D scans. See DESIGN.md for the architecture.
 
 pub mod config;
+pub mod daemon;
 pub mod mesh;
 pub mod ops;
 pub mod recipe;
