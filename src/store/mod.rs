@@ -422,6 +422,19 @@ impl Store {
             path: path.clone(),
             source,
         };
+        // A cheap read first, so that an idle daemon takes no write lock every second.
+        let any: Option<i64> = self
+            .conn
+            .query_row(
+                "SELECT id FROM job WHERE (state='queued' OR (state='failed' AND retryable=1)) AND run_after<=?1 LIMIT 1",
+                [now],
+                |r| r.get(0),
+            )
+            .optional()
+            .map_err(sq)?;
+        if any.is_none() {
+            return Ok(None);
+        }
         let tx = self.immediate()?;
         let row = tx
             .query_row(
@@ -785,3 +798,47 @@ fn close_attempt(
 
 #[cfg(test)]
 mod tests;
+
+impl Store {
+    /// Every job's input signatures, keyed by (root, mesh rel_path), newest job last, so
+    /// that the reconciler need not hash again at start-up what it already recorded.
+    pub fn known_inputs(&self) -> Result<Vec<(String, String, Vec<(String, u64, i64, u64)>)>> {
+        let err = |source| StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        };
+        let mut stmt = self
+            .conn
+            .prepare(
+                "SELECT j.id, j.root, j.rel_path, i.rel_path, i.size, i.mtime_ns, i.ino
+                 FROM job j JOIN job_input i ON i.job_id = j.id ORDER BY j.id, i.rowid",
+            )
+            .map_err(err)?;
+        let rows = stmt
+            .query_map([], |r| {
+                Ok((
+                    r.get::<_, i64>(0)?,
+                    r.get::<_, String>(1)?,
+                    r.get::<_, String>(2)?,
+                    (
+                        r.get::<_, String>(3)?,
+                        r.get::<_, i64>(4)? as u64,
+                        r.get::<_, i64>(5)?,
+                        r.get::<_, i64>(6)? as u64,
+                    ),
+                ))
+            })
+            .map_err(err)?;
+        let mut out: Vec<(String, String, Vec<(String, u64, i64, u64)>)> = Vec::new();
+        let mut last_id = None;
+        for row in rows {
+            let (id, root, rel, member) = row.map_err(err)?;
+            if last_id != Some(id) {
+                out.push((root, rel, Vec::new()));
+                last_id = Some(id);
+            }
+            out.last_mut().expect("pushed").2.push(member);
+        }
+        Ok(out)
+    }
+}
