@@ -4,6 +4,7 @@ pub mod config;
 pub mod daemon;
 pub mod mesh;
 pub mod ops;
+pub mod process;
 pub mod recipe;
 pub mod report;
 pub mod store;

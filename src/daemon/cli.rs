@@ -98,11 +98,17 @@ impl ServiceCommand {
 
     /// Runs the command; returns the process exit code.
     pub fn run(&self) -> u8 {
-        let mut out = std::io::stdout().lock();
-        let mut err = std::io::stderr().lock();
+        // Unlocked handles: a held stderr lock would block every log line from other
+        // threads (the daemon's jobs) for the whole run.
+        let mut out = std::io::stdout();
+        let mut err = std::io::stderr();
         match self {
-            ServiceCommand::Daemon { config } => run_daemon(config.as_deref(), default_processor(), &mut err),
-            ServiceCommand::ValidateConfig { config } => validate_config(config.as_deref(), &mut out, &mut err),
+            ServiceCommand::Daemon { config } => {
+                run_daemon(config.as_deref(), default_processor(), &mut err)
+            }
+            ServiceCommand::ValidateConfig { config } => {
+                validate_config(config.as_deref(), &mut out, &mut err)
+            }
             ServiceCommand::History {
                 config,
                 since,
@@ -128,8 +134,12 @@ impl ServiceCommand {
                 };
                 report(history(config.as_deref(), &args, &mut out), &mut err)
             }
-            ServiceCommand::Show { job, config } => report(show(config.as_deref(), *job, &mut out), &mut err),
-            ServiceCommand::Requeue { job, config } => report(requeue(config.as_deref(), *job, &mut out), &mut err),
+            ServiceCommand::Show { job, config } => {
+                report(show(config.as_deref(), *job, &mut out), &mut err)
+            }
+            ServiceCommand::Requeue { job, config } => {
+                report(requeue(config.as_deref(), *job, &mut out), &mut err)
+            }
             ServiceCommand::Db {
                 command: DbCommand::Backup { file, config },
             } => report(db_backup(config.as_deref(), file, &mut out), &mut err),
@@ -152,7 +162,10 @@ impl From<StoreError> for CliError {
             StoreError::NoSuchJob(_) => exit::USAGE,
             StoreError::WrongState { .. } => exit::TEMP_FAIL,
             StoreError::Sqlite { source, .. }
-                if matches!(source.sqlite_error_code(), Some(rusqlite::ErrorCode::DatabaseBusy)) =>
+                if matches!(
+                    source.sqlite_error_code(),
+                    Some(rusqlite::ErrorCode::DatabaseBusy)
+                ) =>
             {
                 exit::TEMP_FAIL
             }
@@ -196,18 +209,20 @@ fn report(result: Result<(), CliError>, err: &mut dyn Write) -> u8 {
 /// The worker's processor: the same `process_scan` as `scanmill process`.
 pub fn default_processor() -> Processor {
     Arc::new(|input, recipe, recipe_path, out_dir, progress| {
-        crate::process::process_scan(input, recipe, Some(recipe_path), out_dir, progress).map_err(|e| {
-            let kind = match &e {
-                crate::process::ProcessError::Input(_) => "input",
-                crate::process::ProcessError::Step { .. } => "step",
-                crate::process::ProcessError::Output { .. } => "output",
-            };
-            ProcessFailure {
-                kind: kind.into(),
-                transient: e.is_transient(),
-                message: e.to_string(),
-            }
-        })
+        crate::process::process_scan(input, recipe, Some(recipe_path), out_dir, progress).map_err(
+            |e| {
+                let kind = match &e {
+                    crate::process::ProcessError::Input(_) => "input",
+                    crate::process::ProcessError::Step { .. } => "step",
+                    crate::process::ProcessError::Output { .. } => "output",
+                };
+                ProcessFailure {
+                    kind: kind.into(),
+                    transient: e.is_transient(),
+                    message: e.to_string(),
+                }
+            },
+        )
     })
 }
 
@@ -291,7 +306,11 @@ fn csv_field(s: &str) -> String {
 }
 
 /// `scanmill history`.
-pub fn history(config: Option<&Path>, args: &HistoryArgs, out: &mut dyn Write) -> Result<(), CliError> {
+pub fn history(
+    config: Option<&Path>,
+    args: &HistoryArgs,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
     if let Some(s) = &args.status
         && !STATES.contains(&s.as_str())
     {
@@ -371,7 +390,9 @@ fn write_history_text(rows: &[HistoryRow], out: &mut dyn Write) -> std::io::Resu
             r.created,
             num(r.in_faces),
             num(r.out_faces),
-            r.process_ms.map(|v| format!("{v:.0}")).unwrap_or_else(|| "-".into()),
+            r.process_ms
+                .map(|v| format!("{v:.0}"))
+                .unwrap_or_else(|| "-".into()),
             detail
         )?;
     }
@@ -405,6 +426,11 @@ pub fn db_backup(config: Option<&Path>, file: &Path, out: &mut dyn Write) -> Res
     }
     let store = open_store(config, false)?;
     store.backup(file)?;
-    writeln!(out, "{} -> {} (integrity ok)", store.path().display(), file.display())?;
+    writeln!(
+        out,
+        "{} -> {} (integrity ok)",
+        store.path().display(),
+        file.display()
+    )?;
     Ok(())
 }

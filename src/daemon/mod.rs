@@ -2,5 +2,10 @@
 //! off the async threads, publish results atomically, talk to systemd.
 //! See docs/service.md for operation and spec/service.md for the reasoning.
 
+pub mod cli;
 pub mod glob;
+pub mod publish;
 pub mod scanset;
+pub mod service;
+pub mod systemd;
+pub mod worker;

@@ -30,11 +30,20 @@ pub fn fsync_dir(dir: &Path) -> std::io::Result<()> {
 /// (a plain rename silently replaces an empty directory).
 pub fn rename_no_replace(from: &Path, to: &Path) -> std::io::Result<()> {
     let c = |p: &Path| {
-        CString::new(p.as_os_str().as_bytes()).map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidInput, "NUL in path"))
+        CString::new(p.as_os_str().as_bytes())
+            .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidInput, "NUL in path"))
     };
     let (f, t) = (c(from)?, c(to)?);
     // SAFETY: both are valid NUL-terminated paths; AT_FDCWD resolves them like rename(2).
-    let r = unsafe { libc::renameat2(libc::AT_FDCWD, f.as_ptr(), libc::AT_FDCWD, t.as_ptr(), libc::RENAME_NOREPLACE) };
+    let r = unsafe {
+        libc::renameat2(
+            libc::AT_FDCWD,
+            f.as_ptr(),
+            libc::AT_FDCWD,
+            t.as_ptr(),
+            libc::RENAME_NOREPLACE,
+        )
+    };
     if r == 0 {
         return Ok(());
     }
@@ -44,7 +53,10 @@ pub fn rename_no_replace(from: &Path, to: &Path) -> std::io::Result<()> {
         // writes into its output tree, so the window is ours alone.
         Some(libc::EINVAL) | Some(libc::ENOSYS) | Some(libc::EOPNOTSUPP) => {
             if std::fs::symlink_metadata(to).is_ok() {
-                return Err(std::io::Error::new(std::io::ErrorKind::AlreadyExists, "target exists"));
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    "target exists",
+                ));
             }
             std::fs::rename(from, to)
         }
@@ -62,7 +74,11 @@ pub fn clean_staging(output_root: &Path) -> usize {
     let mut n = 0;
     for e in entries.flatten() {
         let p = e.path();
-        let removed = if p.is_dir() { std::fs::remove_dir_all(&p) } else { std::fs::remove_file(&p) };
+        let removed = if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
         match removed {
             Ok(()) => n += 1,
             Err(err) => tracing::warn!("cannot remove stale temporary {}: {err}", p.display()),
@@ -95,7 +111,10 @@ pub fn destination(output_root: &Path, rel_path: &str, stem: &str) -> PathBuf {
 fn published_identity(dir: &Path, stem: &str) -> Option<(String, i64)> {
     let text = std::fs::read_to_string(dir.join(format!("{stem}{SIDECAR_SUFFIX}"))).ok()?;
     let v: Value = serde_json::from_str(&text).ok()?;
-    Some((v["job_key"].as_str()?.to_string(), v["generation"].as_i64()?))
+    Some((
+        v["job_key"].as_str()?.to_string(),
+        v["generation"].as_i64()?,
+    ))
 }
 
 /// Creates `dir` and its missing parents, fsyncing each parent whose entries changed.
@@ -128,14 +147,29 @@ pub enum Published {
 
 /// Moves the assembled folder `staged` (its sidecar named `<stem>.scanmill.json`) to its
 /// destination, never replacing anything.
-pub fn publish_dir(staged: &Path, dest: &Path, stem: &str, job_key: &str, generation: i64) -> std::io::Result<Published> {
+pub fn publish_dir(
+    staged: &Path,
+    dest: &Path,
+    stem: &str,
+    job_key: &str,
+    generation: i64,
+) -> std::io::Result<Published> {
     let parent = dest.parent().unwrap_or(Path::new("/")).to_path_buf();
     create_dirs_durably(&parent)?;
-    let base = dest.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let base = dest
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     for n in 1..10_000 {
-        let candidate = if n == 1 { dest.to_path_buf() } else { parent.join(format!("{base}.v{n}")) };
+        let candidate = if n == 1 {
+            dest.to_path_buf()
+        } else {
+            parent.join(format!("{base}.v{n}"))
+        };
         if std::fs::symlink_metadata(&candidate).is_ok() {
-            if published_identity(&candidate, stem).is_some_and(|(k, g)| k == job_key && g == generation) {
+            if published_identity(&candidate, stem)
+                .is_some_and(|(k, g)| k == job_key && g == generation)
+            {
                 return Ok(Published::AlreadyThere(candidate));
             }
             continue;
@@ -152,13 +186,19 @@ pub fn publish_dir(staged: &Path, dest: &Path, stem: &str, job_key: &str, genera
                 }
                 return Ok(Published::New(candidate));
             }
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists || e.raw_os_error() == Some(libc::ENOTEMPTY) => {
+            Err(e)
+                if e.kind() == std::io::ErrorKind::AlreadyExists
+                    || e.raw_os_error() == Some(libc::ENOTEMPTY) =>
+            {
                 continue;
             }
             Err(e) => return Err(e),
         }
     }
-    Err(std::io::Error::other(format!("{}: too many versions", dest.display())))
+    Err(std::io::Error::other(format!(
+        "{}: too many versions",
+        dest.display()
+    )))
 }
 
 #[cfg(test)]
@@ -189,7 +229,12 @@ mod tests {
         let again = publish_dir(&staged(out, "j3", "k2", 0), &dest, "scan", "k2", 0).unwrap();
         assert_eq!(again, Published::AlreadyThere(out.join("lab/a/scan.v2")));
         assert_eq!(clean_staging(out), 3);
-        assert!(std::fs::read_dir(out.join(STAGING_DIR)).unwrap().next().is_none());
+        assert!(
+            std::fs::read_dir(out.join(STAGING_DIR))
+                .unwrap()
+                .next()
+                .is_none()
+        );
     }
 
     #[test]

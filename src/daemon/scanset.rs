@@ -177,7 +177,18 @@ pub fn mtl_maps(path: &Path) -> std::io::Result<Vec<String>> {
 /// as written is also tried with whitespace splitting for `mtllib` (several names on one
 /// line), which the caller handles.
 fn resolve(dir: &Path, name: &str) -> PathBuf {
-    dir.join(name.replace('\\', "/"))
+    let joined = dir.join(name.replace('\\', "/"));
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            std::path::Component::CurDir => {}
+            std::path::Component::ParentDir if out.file_name().is_some() => {
+                out.pop();
+            }
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out
 }
 
 /// Caches parsed references per file version, so that a walk re-reads nothing that did not

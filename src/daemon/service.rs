@@ -16,7 +16,9 @@ use super::systemd::{Notifier, StateLock, free_bytes};
 use super::worker::{self, JobResult, JobSpec, Processor, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
-use crate::store::{ClaimedJob, Enqueued, FinalState, Finish, NewJob, Owner, Store, StoreError, now_ms};
+use crate::store::{
+    ClaimedJob, Enqueued, FinalState, Finish, NewJob, Owner, Store, StoreError, now_ms,
+};
 use std::collections::HashMap;
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
@@ -28,7 +30,10 @@ use tokio::sync::mpsc;
 #[derive(Debug, thiserror::Error)]
 pub enum ServiceError {
     #[error("invalid configuration ({origin}):\n  {}", problems.join("\n  "))]
-    Config { origin: ConfigSource, problems: Vec<String> },
+    Config {
+        origin: ConfigSource,
+        problems: Vec<String>,
+    },
     #[error("{0}")]
     Locked(std::io::Error),
     #[error(transparent)]
@@ -106,15 +111,24 @@ fn secs(s: f64) -> Duration {
 }
 
 fn root_identity(path: &Path) -> Option<(u64, u64)> {
-    std::fs::metadata(path).ok().filter(|m| m.is_dir()).map(|m| (m.dev(), m.ino()))
+    std::fs::metadata(path)
+        .ok()
+        .filter(|m| m.is_dir())
+        .map(|m| (m.dev(), m.ino()))
 }
 
 /// Runs the daemon until SIGTERM/SIGINT. `config` must come from [`DaemonConfig::locate`].
-pub fn run(config: DaemonConfig, origin: ConfigSource, processor: Processor, hooks: TestHooks) -> Result<(), ServiceError> {
+pub fn run(
+    config: DaemonConfig,
+    origin: ConfigSource,
+    processor: Processor,
+    hooks: TestHooks,
+) -> Result<(), ServiceError> {
     tracing::info!(config = %origin, version = env!("CARGO_PKG_VERSION"), "scanmill daemon starting");
     // Make the folders first when asked, so that validation sees them.
     if config.create_missing_dirs {
-        let dirs = std::iter::once(&config.state_dir).chain(config.watch.iter().flat_map(|w| [&w.path, &w.output]));
+        let dirs = std::iter::once(&config.state_dir)
+            .chain(config.watch.iter().flat_map(|w| [&w.path, &w.output]));
         for d in dirs {
             if !d.exists() {
                 std::fs::create_dir_all(d).map_err(|source| ServiceError::Io {
@@ -133,7 +147,10 @@ pub fn run(config: DaemonConfig, origin: ConfigSource, processor: Processor, hoo
     let mut store = Store::open(&config.database_path())?;
     let requeued = store.recover_running()?;
     if requeued > 0 {
-        tracing::warn!(requeued, "jobs left running by a previous process are queued again");
+        tracing::warn!(
+            requeued,
+            "jobs left running by a previous process are queued again"
+        );
     }
     let mut known = Known::new();
     for (root, rel, members) in store.known_inputs()? {
@@ -294,7 +311,8 @@ impl Service {
             let events = self.tracker.recheck_pending(now, now_ms());
             self.handle_events(events)?;
         }
-        self.shutdown(&mut results_rx, &mut sigterm, &mut sigint).await
+        self.shutdown(&mut results_rx, &mut sigterm, &mut sigint)
+            .await
     }
 
     /// Sets up (or re-creates) the file watch of a root that exists; falls back to
@@ -383,8 +401,12 @@ impl Service {
                         inputs: set.inputs.clone(),
                     };
                     match self.store.enqueue(&job)? {
-                        Enqueued::New(id) => tracing::info!(job_id = id, input = %set.rel_path, "queued"),
-                        Enqueued::Revived(id) => tracing::info!(job_id = id, input = %set.rel_path, "input is back: queued again"),
+                        Enqueued::New(id) => {
+                            tracing::info!(job_id = id, input = %set.rel_path, "queued")
+                        }
+                        Enqueued::Revived(id) => {
+                            tracing::info!(job_id = id, input = %set.rel_path, "input is back: queued again")
+                        }
                         Enqueued::Existing { id, state } => tracing::info!(
                             job_id = id,
                             input = %set.rel_path,
@@ -406,9 +428,13 @@ impl Service {
                     first_seen_ms,
                 } => {
                     let root = self.roots[root_index].path.to_string_lossy().into_owned();
-                    self.store.set_waiting(&root, &rel_path, &reason, first_seen_ms)?;
+                    self.store
+                        .set_waiting(&root, &rel_path, &reason, first_seen_ms)?;
                 }
-                Event::NotWaiting { root_index, rel_path } => {
+                Event::NotWaiting {
+                    root_index,
+                    rel_path,
+                } => {
                     let root = self.roots[root_index].path.to_string_lossy().into_owned();
                     self.store.clear_waiting(&root, &rel_path)?;
                 }
@@ -421,9 +447,13 @@ impl Service {
     fn disk_ok(&mut self) -> bool {
         let floor = self.config.min_free_disk_mb.saturating_mul(1 << 20);
         let low = self.roots.iter().find_map(|r| {
-            free_bytes(&r.output)
-                .filter(|&f| f < floor)
-                .map(|f| format!("paused: low disk on {} ({} MiB free)", r.output.display(), f >> 20))
+            free_bytes(&r.output).filter(|&f| f < floor).map(|f| {
+                format!(
+                    "paused: low disk on {} ({} MiB free)",
+                    r.output.display(),
+                    f >> 20
+                )
+            })
         });
         if low != self.paused {
             match &low {
@@ -513,7 +543,9 @@ impl Service {
         };
         match result {
             JobResult::Finished { finish, wall_ms } => {
-                let state = self.store.finish(&running.job, &finish, self.retry(), wall_ms)?;
+                let state = self
+                    .store
+                    .finish(&running.job, &finish, self.retry(), wall_ms)?;
                 match (&finish, state) {
                     (Finish::Done { output_dir, .. }, _) => {
                         tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
@@ -556,7 +588,9 @@ impl Service {
                 ),
                 transient: true,
             };
-            let state = self.store.finish(&r.job, &f, self.retry(), self.config.job_timeout_secs * 1e3)?;
+            let state =
+                self.store
+                    .finish(&r.job, &f, self.retry(), self.config.job_timeout_secs * 1e3)?;
             tracing::error!(job_id = id, state = ?state, "job timed out");
         }
         Ok(())
@@ -624,7 +658,10 @@ impl Service {
                 };
                 let state = self.store.finish(&r.job, &f, self.retry(), 0.0)?;
                 debug_assert_eq!(state, FinalState::Requeued);
-                tracing::warn!(job_id = id, "not finished before the stop deadline: queued again");
+                tracing::warn!(
+                    job_id = id,
+                    "not finished before the stop deadline: queued again"
+                );
             }
         }
         let publishing_deadline = Instant::now() + Duration::from_secs(30);

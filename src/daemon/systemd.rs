@@ -122,7 +122,8 @@ impl StateLock {
 
 /// Free space (bytes) on the file system holding `path`.
 pub fn free_bytes(path: &Path) -> Option<u64> {
-    let c = std::ffi::CString::new(std::os::unix::ffi::OsStrExt::as_bytes(path.as_os_str())).ok()?;
+    let c =
+        std::ffi::CString::new(std::os::unix::ffi::OsStrExt::as_bytes(path.as_os_str())).ok()?;
     let mut s: libc::statvfs = unsafe { std::mem::zeroed() };
     // SAFETY: valid path and out-pointer.
     let r = unsafe { libc::statvfs(c.as_ptr(), &mut s) };
@@ -139,7 +140,10 @@ pub fn init_logging() {
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
     let under_journal = std::env::var_os("JOURNAL_STREAM").is_some();
     if under_journal && let Ok(journald) = tracing_journald::layer() {
-        let _ = tracing_subscriber::registry().with(filter).with(journald).try_init();
+        let _ = tracing_subscriber::registry()
+            .with(filter)
+            .with(journald)
+            .try_init();
         return;
     }
     let fmt = tracing_subscriber::fmt::layer()
@@ -148,9 +152,15 @@ pub fn init_logging() {
         .with_ansi(std::io::stderr().is_terminal());
     if under_journal {
         // The journal stamps lines itself.
-        let _ = tracing_subscriber::registry().with(filter).with(fmt.without_time()).try_init();
+        let _ = tracing_subscriber::registry()
+            .with(filter)
+            .with(fmt.without_time())
+            .try_init();
     } else {
-        let _ = tracing_subscriber::registry().with(filter).with(fmt).try_init();
+        let _ = tracing_subscriber::registry()
+            .with(filter)
+            .with(fmt)
+            .try_init();
     }
 }
 

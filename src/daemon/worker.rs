@@ -30,8 +30,11 @@ pub struct ProcessFailure {
 }
 
 /// Runs a recipe on one scan, writing the result files into `out_dir`.
-pub type Processor =
-    Arc<dyn Fn(&Path, &Recipe, &Path, &Path, &dyn Progress) -> Result<Report, ProcessFailure> + Send + Sync>;
+pub type Processor = Arc<
+    dyn Fn(&Path, &Recipe, &Path, &Path, &dyn Progress) -> Result<Report, ProcessFailure>
+        + Send
+        + Sync,
+>;
 
 const RUNNING: u8 = 0;
 const PUBLISHING: u8 = 1;
@@ -44,11 +47,15 @@ pub struct PublishGate(AtomicU8);
 impl PublishGate {
     /// The worker asks to publish; false if the job was abandoned.
     pub fn begin_publish(&self) -> bool {
-        self.0.compare_exchange(RUNNING, PUBLISHING, Ordering::SeqCst, Ordering::SeqCst).is_ok()
+        self.0
+            .compare_exchange(RUNNING, PUBLISHING, Ordering::SeqCst, Ordering::SeqCst)
+            .is_ok()
     }
     /// The service abandons the job; false if it is already publishing (then wait for it).
     pub fn abandon(&self) -> bool {
-        self.0.compare_exchange(RUNNING, ABANDONED, Ordering::SeqCst, Ordering::SeqCst).is_ok()
+        self.0
+            .compare_exchange(RUNNING, ABANDONED, Ordering::SeqCst, Ordering::SeqCst)
+            .is_ok()
     }
 }
 
@@ -70,7 +77,10 @@ pub struct JobSpec {
 /// What a finished thread reports.
 #[derive(Debug)]
 pub enum JobResult {
-    Finished { finish: Finish, wall_ms: f64 },
+    Finished {
+        finish: Finish,
+        wall_ms: f64,
+    },
     /// The gate was closed (timeout or shutdown); nothing was published.
     Abandoned,
 }
@@ -102,13 +112,15 @@ pub fn run(spec: JobSpec) -> JobResult {
     let start = Instant::now();
     let span = tracing::info_span!("job", job_id = spec.job.id, input = %spec.job.rel_path, attempt = spec.job.attempt);
     let _guard = span.enter();
-    let staging = Path::new(&spec.job.output_root).join(STAGING_DIR).join(format!(
-        "job{}-g{}-a{}-{}",
-        spec.job.id,
-        spec.job.generation,
-        spec.job.attempt,
-        std::process::id()
-    ));
+    let staging = Path::new(&spec.job.output_root)
+        .join(STAGING_DIR)
+        .join(format!(
+            "job{}-g{}-a{}-{}",
+            spec.job.id,
+            spec.job.generation,
+            spec.job.attempt,
+            std::process::id()
+        ));
     let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| run_inner(&spec, &staging)));
     // Whatever happened, nothing of this attempt stays in staging.
     if staging.exists()
@@ -145,12 +157,19 @@ fn check_inputs(job: &ClaimedJob) -> Result<(), Finish> {
             Ok(_) => {
                 return Err(failure(
                     "input_changed",
-                    format!("{} changed after it was queued; the new version is a new job", path.display()),
+                    format!(
+                        "{} changed after it was queued; the new version is a new job",
+                        path.display()
+                    ),
                     false,
                 ));
             }
             Err(e) => {
-                return Err(failure("input_vanished", format!("{}: {e}", path.display()), false));
+                return Err(failure(
+                    "input_vanished",
+                    format!("{}: {e}", path.display()),
+                    false,
+                ));
             }
         }
     }
@@ -176,7 +195,10 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
     if total > spec.max_input_bytes {
         return Some(failure(
             "too_large",
-            format!("input set is {total} bytes, above max_input_bytes = {}", spec.max_input_bytes),
+            format!(
+                "input set is {total} bytes, above max_input_bytes = {}",
+                spec.max_input_bytes
+            ),
             false,
         ));
     }
@@ -184,14 +206,24 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
     let stem = output_stem(&primary);
     let scan_dir = staging.join(&stem);
     if let Err(e) = std::fs::create_dir_all(&scan_dir) {
-        return Some(failure("output", format!("{}: {e}", scan_dir.display()), true));
+        return Some(failure(
+            "output",
+            format!("{}: {e}", scan_dir.display()),
+            true,
+        ));
     }
     let started_ms = now_ms();
     let progress = JobProgress {
         job_id: job.id,
         delay: spec.stage_delay,
     };
-    let report = match (spec.processor)(&primary, &spec.recipe, &spec.recipe_path, &scan_dir, &progress) {
+    let report = match (spec.processor)(
+        &primary,
+        &spec.recipe,
+        &spec.recipe_path,
+        &scan_dir,
+        &progress,
+    ) {
         Ok(r) => r,
         Err(f) => {
             // An input that vanished or changed while being read is not the scan's fault.
@@ -234,21 +266,35 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         .and_then(|bytes| std::fs::write(&sidecar_path, bytes))
         .and_then(|_| publish::sync_tree(&scan_dir));
     if let Err(e) = written {
-        return Some(failure("output", format!("{}: {e}", scan_dir.display()), true));
+        return Some(failure(
+            "output",
+            format!("{}: {e}", scan_dir.display()),
+            true,
+        ));
     }
     if !spec.gate.begin_publish() {
         tracing::warn!("abandoned before publishing; result discarded");
         return None;
     }
     let dest = publish::destination(Path::new(&job.output_root), &job.rel_path, &stem);
-    let final_dir = match publish::publish_dir(&scan_dir, &dest, &stem, &job.job_key, job.generation) {
-        Ok(Published::New(d)) => d,
-        Ok(Published::AlreadyThere(d)) => {
-            tracing::info!("{} already holds this job's result (published before a restart)", d.display());
-            d
-        }
-        Err(e) => return Some(failure("output", format!("publish to {}: {e}", dest.display()), true)),
-    };
+    let final_dir =
+        match publish::publish_dir(&scan_dir, &dest, &stem, &job.job_key, job.generation) {
+            Ok(Published::New(d)) => d,
+            Ok(Published::AlreadyThere(d)) => {
+                tracing::info!(
+                    "{} already holds this job's result (published before a restart)",
+                    d.display()
+                );
+                d
+            }
+            Err(e) => {
+                return Some(failure(
+                    "output",
+                    format!("publish to {}: {e}", dest.display()),
+                    true,
+                ));
+            }
+        };
     tracing::info!(output = %final_dir.display(), ms = report.total_ms, "published");
     let outputs = report
         .output
@@ -256,7 +302,11 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         .iter()
         .map(|f| {
             let name = f.path.file_name().map(PathBuf::from).unwrap_or_default();
-            (final_dir.join(name).to_string_lossy().into_owned(), f.bytes, f.sha256.clone())
+            (
+                final_dir.join(name).to_string_lossy().into_owned(),
+                f.bytes,
+                f.sha256.clone(),
+            )
         })
         .collect();
     let steps = report
