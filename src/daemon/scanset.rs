@@ -356,7 +356,7 @@ struct Tracked {
 
 /// Known input sets from the database, keyed by (root, primary rel_path): the signatures
 /// recorded with their jobs. A set on disk that matches needs no hashing at start-up.
-pub type Known = HashMap<(String, String), Vec<(String, u64, i64, u64)>>;
+pub type Known = HashMap<(String, String), Vec<crate::store::MemberSig>>;
 
 /// Decides which sets are ready. Owned by the service loop; all file-system work is
 /// synchronous and cheap (stat), except hashing a set once it is quiet.
@@ -401,7 +401,7 @@ impl Tracker {
     }
 
     /// Remembers a set's signatures as recorded in the database (after an enqueue).
-    pub fn remember(&mut self, root: &str, rel_path: &str, members: Vec<(String, u64, i64, u64)>) {
+    pub fn remember(&mut self, root: &str, rel_path: &str, members: Vec<crate::store::MemberSig>) {
         self.known
             .insert((root.to_string(), rel_path.to_string()), members);
     }

@@ -148,14 +148,14 @@ pub fn run(spec: JobSpec) -> JobResult {
 }
 
 /// Checks every input member is still the file that was queued.
-fn check_inputs(job: &ClaimedJob) -> Result<(), Finish> {
+fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
     let root = Path::new(&job.root);
     for m in &job.inputs {
         let path = root.join(&m.rel_path);
         match StatSig::of(&path) {
             Ok(s) if s.size == m.size && s.mtime_ns == m.mtime_ns && s.ino == m.ino => {}
             Ok(_) => {
-                return Err(failure(
+                return Err(boxed_failure(
                     "input_changed",
                     format!(
                         "{} changed after it was queued; the new version is a new job",
@@ -165,7 +165,7 @@ fn check_inputs(job: &ClaimedJob) -> Result<(), Finish> {
                 ));
             }
             Err(e) => {
-                return Err(failure(
+                return Err(boxed_failure(
                     "input_vanished",
                     format!("{}: {e}", path.display()),
                     false,
@@ -189,7 +189,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         ));
     }
     if let Err(f) = check_inputs(job) {
-        return Some(f);
+        return Some(*f);
     }
     let total: u64 = job.inputs.iter().map(|m| m.size).sum();
     if total > spec.max_input_bytes {
@@ -228,7 +228,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         Err(f) => {
             // An input that vanished or changed while being read is not the scan's fault.
             if let Err(changed) = check_inputs(job) {
-                return Some(changed);
+                return Some(*changed);
             }
             return Some(Finish::Failed {
                 kind: f.kind,
@@ -238,7 +238,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         }
     };
     if let Err(changed) = check_inputs(job) {
-        return Some(changed);
+        return Some(*changed);
     }
     let report_value = serde_json::to_value(&report).unwrap_or_default();
     let sidecar = json!({
@@ -348,4 +348,8 @@ pub fn output_stem(input: &Path) -> String {
         Some((stem, _)) if !stem.is_empty() => stem.to_string(),
         _ => name.to_string(),
     }
+}
+
+fn boxed_failure(kind: &str, message: impl Into<String>, transient: bool) -> Box<Finish> {
+    Box::new(failure(kind, message, transient))
 }

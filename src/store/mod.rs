@@ -799,10 +799,15 @@ fn close_attempt(
 #[cfg(test)]
 mod tests;
 
+/// A member's recorded signature: (rel_path, size, mtime_ns, ino).
+pub type MemberSig = (String, u64, i64, u64);
+/// A job's set as recorded: (root, mesh rel_path, members).
+pub type KnownSet = (String, String, Vec<MemberSig>);
+
 impl Store {
     /// Every job's input signatures, keyed by (root, mesh rel_path), newest job last, so
     /// that the reconciler need not hash again at start-up what it already recorded.
-    pub fn known_inputs(&self) -> Result<Vec<(String, String, Vec<(String, u64, i64, u64)>)>> {
+    pub fn known_inputs(&self) -> Result<Vec<KnownSet>> {
         let err = |source| StoreError::Sqlite {
             path: self.path.clone(),
             source,
@@ -829,7 +834,7 @@ impl Store {
                 ))
             })
             .map_err(err)?;
-        let mut out: Vec<(String, String, Vec<(String, u64, i64, u64)>)> = Vec::new();
+        let mut out: Vec<KnownSet> = Vec::new();
         let mut last_id = None;
         for row in rows {
             let (id, root, rel, member) = row.map_err(err)?;
