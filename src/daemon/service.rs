@@ -101,6 +101,12 @@ struct Service {
     last_status: String,
     paused: Option<String>,
     stopping: bool,
+    /// Something may be claimable: set by our own writes; other connections' writes are
+    /// seen through `data_version`. Lets an idle daemon skip the queue queries.
+    work_maybe: bool,
+    data_version: i64,
+    next_run_after: Option<i64>,
+    counts: (i64, i64),
 }
 
 const DEBOUNCE: Duration = Duration::from_millis(100);
@@ -223,6 +229,10 @@ pub fn run(
         last_status: String::new(),
         paused: None,
         stopping: false,
+        work_maybe: true,
+        data_version: 0,
+        next_run_after: None,
+        counts: (0, 0),
     };
     let result = runtime.block_on(service.main_loop(results_rx, hints_rx));
     drop(lock);
@@ -251,12 +261,21 @@ impl Service {
             self.ensure_watch(i);
             self.walk_root(i)?;
         }
+        self.counts = self.store.counts()?;
         self.notifier.ready(&self.status_line()?);
         tracing::info!(roots = self.roots.len(), "ready");
         let watchdog = self.notifier.watchdog().map(|w| w / 2);
 
         loop {
-            self.claim_jobs()?;
+            let version = self.store.data_version()?;
+            let due = self.next_run_after.is_some_and(|t| t <= now_ms());
+            if self.work_maybe || due || version != self.data_version || self.paused.is_some() {
+                self.data_version = version;
+                self.work_maybe = false;
+                self.claim_jobs()?;
+                self.next_run_after = self.store.next_run_after()?;
+                self.counts = self.store.counts()?;
+            }
             self.check_timeouts()?;
             self.update_status()?;
             self.notifier.watchdog_ping();
@@ -274,6 +293,10 @@ impl Service {
             }
             if let Some(w) = watchdog {
                 next = next.min(now + w);
+            }
+            if let Some(t) = self.next_run_after {
+                let wait = Duration::from_millis((t - now_ms()).max(0) as u64);
+                next = next.min(now + wait);
             }
             tokio::select! {
                 _ = sigterm.recv() => { tracing::info!("SIGTERM: stopping"); break; }
@@ -339,7 +362,16 @@ impl Service {
         let tx = self.hints_tx.clone();
         let overflow = r.overflow.clone();
         let handler = move |event: notify::Result<notify::Event>| {
+            use notify::event::{AccessKind, AccessMode, EventKind};
             let rescan = match &event {
+                // Our own reads (walking, hashing) raise open/access/close-nowrite events;
+                // they change nothing and must not schedule another walk (a feedback loop).
+                Ok(e)
+                    if matches!(e.kind, EventKind::Access(a) if a != AccessKind::Close(AccessMode::Write))
+                        && !e.need_rescan() =>
+                {
+                    return;
+                }
                 Ok(e) => e.need_rescan(),
                 Err(_) => true,
             };
@@ -400,6 +432,7 @@ impl Service {
                         max_attempts: self.config.max_attempts,
                         inputs: set.inputs.clone(),
                     };
+                    self.work_maybe = true;
                     match self.store.enqueue(&job)? {
                         Enqueued::New(id) => {
                             tracing::info!(job_id = id, input = %set.rel_path, "queued")
@@ -541,6 +574,7 @@ impl Service {
             // An abandoned job's thread came back: already recorded.
             return Ok(());
         };
+        self.work_maybe = true;
         match result {
             JobResult::Finished { finish, wall_ms } => {
                 let state = self
@@ -580,6 +614,7 @@ impl Service {
                 continue; // publishing right now: its result comes in a moment
             }
             let r = self.running.remove(&id).expect("present");
+            self.work_maybe = true;
             let f = Finish::Failed {
                 kind: "timeout".into(),
                 message: format!(
@@ -597,7 +632,7 @@ impl Service {
     }
 
     fn status_line(&self) -> Result<String, ServiceError> {
-        let (queued, running) = self.store.counts()?;
+        let (queued, running) = self.counts;
         let state = if self.stopping {
             "draining"
         } else if let Some(p) = &self.paused {

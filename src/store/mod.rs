@@ -847,3 +847,23 @@ impl Store {
         Ok(out)
     }
 }
+
+impl Store {
+    /// Changes whenever another connection commits (the CLI's `requeue`); cheap, no I/O.
+    pub fn data_version(&self) -> Result<i64> {
+        self.conn
+            .query_row("PRAGMA data_version", [], |r| r.get(0))
+            .map_err(|e| self.err(e))
+    }
+
+    /// When the next queued or retryable job becomes runnable (Unix ms), if any.
+    pub fn next_run_after(&self) -> Result<Option<i64>> {
+        self.conn
+            .query_row(
+                "SELECT min(run_after) FROM job WHERE state='queued' OR (state='failed' AND retryable=1)",
+                [],
+                |r| r.get(0),
+            )
+            .map_err(|e| self.err(e))
+    }
+}
