@@ -192,6 +192,7 @@ fn run_inspect(file: &Path, json: bool, weld_tolerance: f64) -> Result<(), (u8, 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Command::Service(service) = &cli.command {
+        // The daemon sets up its own logging (journald under systemd, info level).
         if !service.owns_logging() {
             init_logging("warn");
         }
@@ -210,7 +211,7 @@ fn main() -> ExitCode {
             json,
             weld_tolerance,
         } => run_inspect(file, *json, *weld_tolerance),
-        Command::Service(_) => unreachable!("handled above"),
+        Command::Service(_) => return ExitCode::FAILURE, // handled above
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,9 +2,8 @@
 //! folder without ever leaving a half-written file there, and build the report.
 //! `scanmill process` and the daemon's worker both call [`process_scan`].
 
-use crate::mesh::io::load;
 use crate::mesh::ply::PlyEncoding;
-use crate::mesh::{LoadOptions, Mesh, MeshError, obj, ply};
+use crate::mesh::{LoadOptions, Mesh, MeshError, SaveOptions, load, save};
 use crate::recipe::runner::{Progress, StepError, run_steps};
 use crate::recipe::{OutputFormat, PlyEncodingSpec, Recipe};
 use crate::report::{
@@ -62,24 +61,28 @@ fn output_error(path: &Path, e: impl std::fmt::Display) -> ProcessError {
 }
 
 /// Writes `mesh` into `dir` in the recipe's format; returns the files written, the main
-/// mesh file last.
+/// mesh file last (so that publishing moves it last).
 pub fn write_mesh(
     mesh: &Mesh,
     recipe: &Recipe,
     dir: &Path,
     stem: &str,
 ) -> Result<Vec<PathBuf>, ProcessError> {
-    let written = match recipe.output.format {
-        OutputFormat::Obj => obj::write(mesh, &dir.join(format!("{stem}.obj")))?,
-        OutputFormat::Ply => {
-            let encoding = match recipe.output.ply_encoding {
+    let (extension, ply_encoding) = match recipe.output.format {
+        OutputFormat::Obj => ("obj", PlyEncoding::default()),
+        OutputFormat::Ply => (
+            "ply",
+            match recipe.output.ply_encoding {
                 PlyEncodingSpec::Ascii => PlyEncoding::Ascii,
                 PlyEncodingSpec::BinaryLittleEndian => PlyEncoding::BinaryLittleEndian,
                 PlyEncodingSpec::BinaryBigEndian => PlyEncoding::BinaryBigEndian,
-            };
-            ply::write(mesh, &dir.join(format!("{stem}.ply")), encoding)?
-        }
+            },
+        ),
     };
+    let main_file = dir.join(format!("{stem}.{extension}"));
+    let mut written = save(mesh, &main_file, &SaveOptions { ply_encoding })?;
+    written.retain(|f| *f != main_file);
+    written.push(main_file);
     Ok(written)
 }
 

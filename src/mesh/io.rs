@@ -73,10 +73,7 @@ pub struct SaveOptions {
 pub fn save(mesh: &Mesh, path: &Path, options: &SaveOptions) -> Result<Vec<PathBuf>> {
     match format_of(path) {
         Some((Format::Obj, false)) => obj::write(mesh, path),
-        Some((Format::Ply, false)) => {
-            ply::write(mesh, path, options.ply_encoding)?;
-            Ok(vec![path.to_path_buf()])
-        }
+        Some((Format::Ply, false)) => ply::write(mesh, path, options.ply_encoding),
         _ => Err(MeshError::UnknownFormat {
             path: path.to_path_buf(),
         }),
