@@ -43,7 +43,12 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
     let raw = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
     let bytes = if gz { gunzip(path, &raw)? } else { raw };
     match format {
-        Format::Obj => obj::read(path, &bytes, options),
+        Format::Obj => {
+            // The text of a large OBJ is bigger than the mesh: free it before welding.
+            let builder = obj::parse(path, &bytes, options)?;
+            drop(bytes);
+            builder.finish(options)
+        }
         Format::Ply => ply::read(path, &bytes, options),
     }
 }
@@ -73,10 +78,7 @@ pub struct SaveOptions {
 pub fn save(mesh: &Mesh, path: &Path, options: &SaveOptions) -> Result<Vec<PathBuf>> {
     match format_of(path) {
         Some((Format::Obj, false)) => obj::write(mesh, path),
-        Some((Format::Ply, false)) => {
-            ply::write(mesh, path, options.ply_encoding)?;
-            Ok(vec![path.to_path_buf()])
-        }
+        Some((Format::Ply, false)) => ply::write(mesh, path, options.ply_encoding),
         _ => Err(MeshError::UnknownFormat {
             path: path.to_path_buf(),
         }),

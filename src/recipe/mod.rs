@@ -241,14 +241,19 @@ impl Recipe {
 
     /// Parses recipe text; `path` is only used in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Recipe, RecipeError> {
+        let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
+        // One line: "line 5: unknown variant `sharpen`, expected one of …".
         let file: RecipeFile = toml::from_str(text).map_err(|e| RecipeError::Parse {
             path: path.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
+            message: match e.span() {
+                Some(span) => format!("line {}: {}", line_of(span.start), e.message().trim()),
+                None => e.message().trim().to_string(),
+            }
+            .replace('\n', " "),
         })?;
-        let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
         let parse_error = |line: usize, message: String| RecipeError::Parse {
             path: path.to_path_buf(),
-            message: format!("line {line}: {}", message.trim_end()),
+            message: format!("line {line}: {}", message.trim().replace('\n', " ")),
         };
         file.metrics
             .options()
@@ -271,7 +276,7 @@ impl Recipe {
                 }
             }
             let step = Step::deserialize(toml::Value::Table(table)).map_err(|e| {
-                let message = e.to_string();
+                let message = e.message().to_string();
                 // Point at the offending key's line where the message names one.
                 let line = error_line(text, spanned_range.end, &message).unwrap_or(line);
                 parse_error(line, message)
