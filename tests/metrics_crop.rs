@@ -213,6 +213,11 @@ fn noisy_copy_of_james_moves_every_metric() {
         },
     )
     .unwrap();
+    eprintln!(
+        "james vs noisy copy (σ = {:.4}): {}",
+        noise.sigma,
+        serde_json::to_string(&m).unwrap()
+    );
     // σ along the normals: the vertices move by |N(0, σ²)|, mean σ·sqrt(2/π); the surface
     // between them moves less.
     let v = m.vertex_deviation.unwrap();
