@@ -56,6 +56,9 @@ enum Command {
         #[arg(long, default_value_t = 0.0)]
         weld_tolerance: f64,
     },
+    /// The service and its audit/operations commands (see docs/service.md).
+    #[command(flatten)]
+    Service(scanmill::daemon::cli::ServiceCommand),
 }
 
 /// A progress bar on stderr when it is a terminal; nothing otherwise.
@@ -188,6 +191,13 @@ fn run_inspect(file: &Path, json: bool, weld_tolerance: f64) -> Result<(), (u8, 
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Command::Service(service) = &cli.command {
+        // The daemon sets up its own logging (journald under systemd, info level).
+        if !service.owns_logging() {
+            init_logging("warn");
+        }
+        return ExitCode::from(service.run());
+    }
     init_logging("warn");
     let result = match &cli.command {
         Command::Process {
@@ -201,6 +211,7 @@ fn main() -> ExitCode {
             json,
             weld_tolerance,
         } => run_inspect(file, *json, *weld_tolerance),
+        Command::Service(_) => return ExitCode::FAILURE, // handled above
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -14,6 +14,7 @@
 
 use super::error::{Location, MeshError, Result};
 use super::model::{Index, Material, Mesh, Wedge};
+use super::wedges::WedgeInterner;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
@@ -143,12 +144,7 @@ impl MeshBuilder {
         self.report.dropped_duplicate_faces = dropped[FaceStatus::Duplicate as usize];
 
         // Wedges: one per distinct (vertex, texcoord, normal), numbered in order of first use.
-        // A vertex has only a few wedges, so a per-vertex list searched linearly is much
-        // faster than hashing every corner.
-        const NONE: Index = Index::MAX;
-        let mut first_wedge = vec![NONE; self.positions.len()];
-        let mut next_wedge: Vec<Index> = Vec::with_capacity(self.positions.len() * 5 / 4);
-        let mut wedges: Vec<Wedge> = Vec::with_capacity(self.positions.len() * 5 / 4);
+        let mut interner = WedgeInterner::new(self.positions.len());
         let mut triangles: Vec<[Index; 3]> = Vec::with_capacity(kept.len());
         let mut triangle_materials: Vec<Index> = Vec::new();
         let has_materials = !self.face_materials.is_empty();
@@ -161,17 +157,7 @@ impl MeshBuilder {
                     texcoord: corner.texcoord.map(|t| texcoord_map[t as usize]),
                     normal: corner.normal.map(|n| normal_map[n as usize]),
                 };
-                let mut w = first_wedge[wedge.vertex as usize];
-                while w != NONE && wedges[w as usize] != wedge {
-                    w = next_wedge[w as usize];
-                }
-                if w == NONE {
-                    w = wedges.len() as Index;
-                    wedges.push(wedge);
-                    next_wedge.push(first_wedge[wedge.vertex as usize]);
-                    first_wedge[wedge.vertex as usize] = w;
-                }
-                tri[k] = w;
+                tri[k] = interner.intern(wedge);
             }
             triangles.push(tri);
             if has_materials {
@@ -211,7 +197,7 @@ impl MeshBuilder {
             texcoords,
             normals,
             colors: self.colors,
-            wedges,
+            wedges: interner.into_wedges(),
             triangles,
             triangle_materials,
             materials: self.materials,
