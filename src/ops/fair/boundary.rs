@@ -210,7 +210,9 @@ mod tests {
             max_iterations: 200,
             ..PhaseParams::curve()
         };
-        let normals = super::super::guards::triangle_references(&m, &topo, &m.positions);
+        let normals = super::super::guards::triangle_references(&m, &m.positions, |v| {
+            topo.is_boundary_vertex(v)
+        });
         let stats = fair_boundary_curve(
             &mut m.positions,
             &nb,
@@ -222,7 +224,11 @@ mod tests {
         );
         assert!(stats.iterations > 0);
         assert_eq!(
-            super::super::guards::turned_over(&m, &normals, &m.positions).0,
+            super::super::guards::turned_over(
+                &m,
+                &super::super::guards::triangle_normals(&m, &before),
+                &m.positions
+            ),
             0
         );
         // The jag (the alternating part of the second difference across the bottom side)

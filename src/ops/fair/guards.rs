@@ -13,21 +13,23 @@ use serde::Serialize;
 /// below which a move may not push a triangle, unless it improves it.
 pub const MIN_QUALITY: f64 = 0.05;
 
-/// How far a step may turn a triangle from its orientation at the start of the step
-/// (unless it starts folded over against its neighbours). 45° so that two steps (`relax`
-/// then `fair`) together never turn a triangle over: measured on james.obj and the
-/// ggg_sfm scans, each step alone turned no triangle over with a 90° limit, but relax +
-/// fair together turned 34 to 99 triangles (mostly at the borders, whose curves are faired
-/// in 3D without regard to the surface) by more than 90°.
-pub const TILT_DEGREES: f64 = 45.0;
-const TILT_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
+/// How far a step may turn a triangle with a boundary vertex from its own orientation at
+/// the start of the step. The boundary curves are faired in 3D without regard to the
+/// surface and swing border triangles round, and at a border the surroundings are few
+/// triangles that swing with them: measured on james.obj and the ggg_sfm scans, relax +
+/// fair turned 23 to 27 border triangles over without this limit.
+pub const BORDER_TILT_DEGREES: f64 = 45.0;
+const BORDER_TILT_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
-/// What a triangle may not turn away from in one step: its normal at the start of the step
-/// (zero = unknown, no limit), by 90°, or by [`TILT_DEGREES`] when `tight`.
+/// What a triangle may not turn away from during a step (see [`check_triangle`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Reference {
-    pub normal: DVec3,
-    pub tight: bool,
+    /// The surface around it at the start of the step (zero = unknown).
+    pub around: DVec3,
+    /// Its own normal at the start of the step.
+    pub own: DVec3,
+    /// It has a boundary vertex: [`BORDER_TILT_DEGREES`] from `own` at most.
+    pub border: bool,
 }
 
 /// Why the vertices that stay fixed do.
@@ -118,9 +120,13 @@ fn quality_squared(cross: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
     }
 }
 
-/// Checks triangle `(a, b, c)` → `(a2, b2, c2)`. Besides the single move, the triangle may
-/// not leave the cone of its [`Reference`], so no sequence of small moves within a step
-/// turns it over either.
+/// Checks triangle `(a, b, c)` → `(a2, b2, c2)`. No triangle turns by more than 90°: not
+/// in the single move, nor from its own orientation at the start of the step (so no
+/// sequence of small moves turns it over either). A triangle facing the same side as the
+/// surface around it at the start of the step (see [`triangle_references`]) may not come
+/// to face away from it, which keeps later steps from turning it further (a fold, facing
+/// away at the start, may turn back). A border triangle may not turn more than
+/// [`BORDER_TILT_DEGREES`] from where it started.
 #[inline]
 pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) -> MoveCheck {
     let n_old = (old[1] - old[0]).cross(old[2] - old[0]);
@@ -131,6 +137,11 @@ pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) ->
     if within_cone(n_old, reference) && !within_cone(n_new, reference) {
         return MoveCheck::Flip;
     }
+    if reference.own.dot(n_new) < 0.0
+        || (reference.border && !within_border_cone(n_new, reference.own))
+    {
+        return MoveCheck::Flip;
+    }
     let q_new = quality_squared(n_new, new[0], new[1], new[2]);
     if q_new < MIN_QUALITY * MIN_QUALITY && q_new < quality_squared(n_old, old[0], old[1], old[2]) {
         return MoveCheck::Degenerate;
@@ -138,16 +149,18 @@ pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) ->
     MoveCheck::Ok
 }
 
-/// `n` is within the reference's cone; true when either vector is zero (an unknown
-/// reference has no cone; a degenerate triangle is the quality test's business).
+/// `n` faces the side of the surroundings (true when either is zero).
 #[inline]
 fn within_cone(n: DVec3, reference: Reference) -> bool {
-    let d = n.dot(reference.normal);
-    if !reference.tight {
-        return d >= 0.0;
-    }
-    let cos2 = TILT_COS * TILT_COS;
-    d >= 0.0 && d * d >= cos2 * n.length_squared() * reference.normal.length_squared()
+    n.dot(reference.around) >= 0.0
+}
+
+/// `n` is within [`BORDER_TILT_DEGREES`] of `own` (true when either is zero).
+#[inline]
+fn within_border_cone(n: DVec3, own: DVec3) -> bool {
+    let d = n.dot(own);
+    let cos2 = BORDER_TILT_COS * BORDER_TILT_COS;
+    d >= 0.0 && d * d >= cos2 * n.length_squared() * own.length_squared()
 }
 
 /// A fan as the guards see it: the ring positions, closed or open, and the references of
@@ -242,59 +255,61 @@ impl GuardCounts {
     }
 }
 
-/// Every triangle's reference for a step starting at `positions`: its normal there, with
-/// the tight cone unless the triangle is folded over against its edge neighbours, which
-/// fairing should be free to undo.
-pub fn triangle_references(mesh: &Mesh, topo: &Topology, positions: &[DVec3]) -> Vec<Reference> {
-    let normals: Vec<DVec3> = (0..mesh.triangles.len())
+/// Every triangle's normal (cross product) at `positions`.
+pub fn triangle_normals(mesh: &Mesh, positions: &[DVec3]) -> Vec<DVec3> {
+    (0..mesh.triangles.len())
         .map(|t| {
             let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
             (b - a).cross(c - a)
         })
-        .collect();
+        .collect()
+}
+
+/// Each triangle's [`Reference`] at `positions`: the surface around it is the sum of the
+/// area-weighted vertex normals of its corners (its own and every triangle sharing a
+/// vertex with it); `is_border` tells the boundary vertices.
+///
+/// Why not the triangle's own normal: a step can only compare with its own input, and a
+/// recipe runs several. Measured on james.obj and the ggg_sfm scans, `relax` then `fair`,
+/// each keeping its triangles within 90° of their own normals at its start, together
+/// turned up to 99 triangles over; a tighter 45° cone stopped that but blocked the
+/// smoothing of thin noisy triangles (a million moves refused on a 200k-vertex scan). The
+/// surroundings move little from step to step, and a triangle tilted by noise still faces
+/// their side.
+pub fn triangle_references(
+    mesh: &Mesh,
+    positions: &[DVec3],
+    is_border: impl Fn(u32) -> bool,
+) -> Vec<Reference> {
+    let normals = triangle_normals(mesh, positions);
+    let mut at_vertex = vec![DVec3::ZERO; positions.len()];
+    for (t, n) in normals.iter().enumerate() {
+        for v in mesh.triangle_vertices(t) {
+            at_vertex[v as usize] += *n;
+        }
+    }
     (0..mesh.triangles.len())
         .map(|t| {
-            let mut around = DVec3::ZERO;
-            let mut neighbours = 0;
-            for e in topo.triangle_edges(t as u32) {
-                if e == crate::mesh::topology::NO_EDGE {
-                    continue;
-                }
-                for u in topo.edge_triangles(e) {
-                    if u as usize != t {
-                        around += normals[u as usize].normalize_or_zero();
-                        neighbours += 1;
-                    }
-                }
-            }
-            // Folded: three edge neighbours, and more than 120° from the mean of their
-            // normals. Looser tests let relax make border triangles (one or two
-            // neighbours) "folded" for fair, which then turned them over (james, Angel).
-            let fold = neighbours == 3
-                && normals[t].dot(around) < -0.5 * normals[t].length() * around.length();
+            let vs = mesh.triangle_vertices(t);
             Reference {
-                normal: normals[t],
-                tight: !fold,
+                around: vs.into_iter().map(|v| at_vertex[v as usize]).sum(),
+                own: normals[t],
+                border: vs.into_iter().any(&is_border),
             }
         })
         .collect()
 }
 
-/// Triangles whose normal ends more than 90° from its reference, split into those that
-/// were folded over in the input (undone: `.1`) and the others (turned over: `.0`).
-pub fn turned_over(mesh: &Mesh, references: &[Reference], positions: &[DVec3]) -> (usize, usize) {
-    let mut counts = (0, 0);
-    for (t, r) in references.iter().enumerate() {
-        let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
-        if r.normal.length_squared() > 0.0 && (b - a).cross(c - a).dot(r.normal) < 0.0 {
-            if r.tight {
-                counts.0 += 1;
-            } else {
-                counts.1 += 1;
-            }
-        }
-    }
-    counts
+/// Triangles whose normal ends more than 90° from `references` (e.g. the input normals).
+pub fn turned_over(mesh: &Mesh, references: &[DVec3], positions: &[DVec3]) -> usize {
+    references
+        .iter()
+        .enumerate()
+        .filter(|&(t, r)| {
+            let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
+            r.length_squared() > 0.0 && (b - a).cross(c - a).dot(*r) < 0.0
+        })
+        .count()
 }
 
 #[cfg(test)]
@@ -326,25 +341,46 @@ mod tests {
         assert!((p.x - 0.75).abs() < 1e-12);
         let (p, g) = guarded_move(c, DVec3::new(9.0, 0.0, 0.0), fan);
         assert_eq!((p, g), (c, Guarded::Skipped(MoveCheck::Flip)));
-        // Against the reference: turning 60° away from it leaves the tight cone.
-        let old = [DVec3::ZERO, DVec3::X, DVec3::Y];
-        let new = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, 0.5, 0.75f64.sqrt())];
-        let interior = Reference {
-            normal: DVec3::Z,
-            tight: false,
+        // Against the surroundings: a triangle tilted 60° from them may tilt back, or on
+        // to 80°, but not past 90° even in a step smaller than 90°.
+        let at = |deg: f64| {
+            let r = deg.to_radians();
+            [DVec3::ZERO, DVec3::X, DVec3::new(0.0, r.cos(), r.sin())]
         };
-        let border = Reference {
-            tight: true,
-            ..interior
+        let own = |deg: f64| {
+            let [a, b, c] = at(deg);
+            (b - a).cross(c - a)
+        };
+        let inner = |start: f64| Reference {
+            around: DVec3::Z,
+            own: own(start),
+            border: false,
         };
         assert_eq!(
-            check_triangle(old, new, Reference::default()),
+            check_triangle(at(60.0), at(10.0), inner(60.0)),
             MoveCheck::Ok
         );
-        assert_eq!(check_triangle(old, new, interior), MoveCheck::Ok);
-        assert_eq!(check_triangle(old, new, border), MoveCheck::Flip);
-        // 100° in steps of less than 90°: caught by the hemisphere.
-        let far = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, -0.17, 0.98)];
-        assert_eq!(check_triangle(new, far, interior), MoveCheck::Flip);
+        assert_eq!(
+            check_triangle(at(60.0), at(80.0), inner(60.0)),
+            MoveCheck::Ok
+        );
+        assert_eq!(
+            check_triangle(at(60.0), at(100.0), inner(60.0)),
+            MoveCheck::Flip
+        );
+        let unknown = Reference::default();
+        assert_eq!(check_triangle(at(60.0), at(100.0), unknown), MoveCheck::Ok);
+        // A fold (facing away from its surroundings) may turn back.
+        assert_eq!(
+            check_triangle(at(120.0), at(60.0), inner(120.0)),
+            MoveCheck::Ok
+        );
+        // A border triangle: 45° from where it started.
+        let border = Reference {
+            border: true,
+            ..inner(60.0)
+        };
+        assert_eq!(check_triangle(at(60.0), at(20.0), border), MoveCheck::Ok);
+        assert_eq!(check_triangle(at(60.0), at(10.0), border), MoveCheck::Flip);
     }
 }

@@ -210,7 +210,7 @@ pub struct Interior<'a> {
     pub triangles: &'a [[u32; 3]],
     /// For the triangles around a vertex.
     pub topo: &'a Topology,
-    /// Every triangle's reference orientation (see [`Reference`]).
+    /// Every triangle's reference at the start of the step (see [`check_triangle`]).
     pub references: &'a [Reference],
     /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
     /// length: fairing.md pitfall 21, an absolute 1e-4 in 1/length would depend on units).
