@@ -10,6 +10,7 @@
 // intended NaN-rejecting test throughout.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod audit;
 pub mod cluster;
 pub mod edge_collapse;
 pub mod face_collapse;

@@ -38,11 +38,9 @@ pub struct Config {
 pub enum Placement {
     /// Minimiser of the wedge-aware quadric (§5.6 step 5).
     Free,
-    /// At the position of S[i], which keeps its place (a fixed, seam or border vertex
-    /// absorbing interior ones: a half-edge collapse onto it).
+    /// At the position of S[i], which keeps its place and its wedges' attributes (a
+    /// fixed, seam or border vertex absorbing neighbours: a half-edge collapse onto it).
     Anchor(usize),
-    /// On the seam or border edge S[i]–S[j] at parameter t: the vertex slides along it.
-    Segment(usize, usize, f64),
 }
 
 /// A merge as evaluated: new position, cost (quadric value), error (RMS distance in
@@ -545,7 +543,11 @@ impl<'a, const M: usize> Work<'a, M> {
             group.q.add(&self.wq[w as usize]);
         }
 
-        // Placement from the vertex classes (seam and border rules).
+        // Placement from the vertex classes (seam and border rules). A seam (border) vertex
+        // only moves along its seam (border): onto a neighbour across a seam (border) edge,
+        // so that output seams run through input seam vertices only (as meshoptimizer's
+        // seam collapses, peers.md §2.1); a fixed vertex may absorb such a neighbour the
+        // same way, and interior vertices merge into whichever of these they meet.
         let classes = [0, 1, 2].map(|i| {
             if i < ns {
                 self.placement_class(s[i])
@@ -560,44 +562,56 @@ impl<'a, const M: usize> Work<'a, M> {
             count(VClass::Border),
         );
         let feature = |c: VClass| c == VClass::Seam || c == VClass::Border;
-        let placement = if fixed >= 2 {
-            return Err(Refusal::Locked);
-        } else if fixed == 1 {
-            if seam + border > 0 {
-                return Err(Refusal::Locked);
+        let first = |f: &dyn Fn(VClass) -> bool| classes[..ns].iter().position(|&c| f(c));
+        let along = |i: usize, j: usize| {
+            if seam > 0 {
+                self.is_seam_edge(s[i], s[j], sc)
+            } else {
+                self.is_border_edge(s[i], s[j], sc)
             }
-            Placement::Anchor(
-                classes
-                    .iter()
-                    .position(|&c| c == VClass::Fixed)
-                    .unwrap_or(0),
-            )
+        };
+        let cause = if seam > 0 {
+            Refusal::Seam
+        } else {
+            Refusal::Boundary
+        };
+        let mut anchors: [usize; 2] = [usize::MAX; 2];
+        if fixed >= 2 {
+            return Err(Refusal::Locked);
         } else if seam > 0 && border > 0 {
             return Err(Refusal::Seam);
-        } else {
-            let cause = if seam > 0 {
-                Refusal::Seam
-            } else {
-                Refusal::Boundary
-            };
+        } else if fixed == 1 {
+            let f = first(&|c| c == VClass::Fixed).unwrap_or(0);
             match seam + border {
-                0 => Placement::Free,
-                1 => Placement::Anchor(classes.iter().position(|&c| feature(c)).unwrap_or(0)),
-                2 => {
-                    let i = classes.iter().position(|&c| feature(c)).unwrap_or(0);
-                    let j = (i + 1..ns).find(|&j| feature(classes[j])).unwrap_or(i);
-                    let on_feature = if seam > 0 {
-                        self.is_seam_edge(s[i], s[j], sc)
-                    } else {
-                        self.is_border_edge(s[i], s[j], sc)
-                    };
-                    if !on_feature {
+                0 => anchors[0] = f,
+                1 => {
+                    let i = first(&feature).unwrap_or(0);
+                    if !along(f, i) {
                         return Err(cause);
                     }
-                    Placement::Segment(i, j, 0.0)
+                    anchors[0] = f;
+                }
+                _ => return Err(Refusal::Locked),
+            }
+        } else {
+            match seam + border {
+                0 => {}
+                1 => anchors[0] = first(&feature).unwrap_or(0),
+                2 => {
+                    let i = first(&feature).unwrap_or(0);
+                    let j = (i + 1..ns).find(|&j| feature(classes[j])).unwrap_or(i);
+                    if !along(i, j) {
+                        return Err(cause);
+                    }
+                    anchors = [i, j];
                 }
                 _ => return Err(cause),
             }
+        }
+        let placement = if anchors[0] == usize::MAX {
+            Placement::Free
+        } else {
+            Placement::Anchor(anchors[0])
         };
 
         let mut red = Reduced::default();
@@ -637,12 +651,18 @@ impl<'a, const M: usize> Work<'a, M> {
                 }
             }
             Placement::Anchor(i) => (self.pos[s[i] as usize], placement),
-            Placement::Segment(i, j, _) => {
-                let (a, b) = (self.pos[s[i] as usize], self.pos[s[j] as usize]);
-                let t = red.minimise_on_segment(a, b);
-                let p = [0, 1, 2].map(|k| a[k] + t * (b[k] - a[k]));
-                (p, Placement::Segment(i, j, t))
+        };
+        // Two seam (border) vertices: slide whichever is cheaper onto the other.
+        let (p, placement) = if anchors[1] != usize::MAX {
+            let (i, j) = (anchors[0], anchors[1]);
+            let (pi, pj) = (self.pos[s[i] as usize], self.pos[s[j] as usize]);
+            if red.eval(pj) < red.eval(pi) {
+                (pj, Placement::Anchor(j))
+            } else {
+                (pi, Placement::Anchor(i))
             }
+        } else {
+            (p, placement)
         };
         if !p.iter().all(|c| c.is_finite()) {
             return Err(Refusal::Degenerate);
@@ -655,18 +675,6 @@ impl<'a, const M: usize> Work<'a, M> {
             let own = |w: u32| -> Option<[f64; M]> { (w != NIL).then(|| self.wattr[w as usize]) };
             let attr = match placement {
                 Placement::Anchor(i) => own(g.at[i]),
-                Placement::Segment(i, j, t) => match (own(g.at[i]), own(g.at[j])) {
-                    (Some(a), Some(b)) => {
-                        let mut s = [0.0; M];
-                        for k in 0..M {
-                            s[k] = a[k] + t * (b[k] - a[k]);
-                        }
-                        Some(s)
-                    }
-                    (Some(a), None) if t == 0.0 => Some(a),
-                    (None, Some(b)) if t == 1.0 => Some(b),
-                    _ => None,
-                },
                 Placement::Free => None,
             };
             g.attr = attr
