@@ -7,26 +7,24 @@ use super::face_collapse::LoopStats;
 use super::work::{Plan, Scratch, Work};
 
 fn sides<const M: usize>(work: &Work<M>, t: usize) -> [[u32; 2]; 3] {
-    let v = work.tris[t].map(|w| work.wvert[w as usize]);
+    let v = work.tv[t];
     [[v[0], v[1]], [v[1], v[2]], [v[2], v[0]]]
 }
 
-/// The cheapest side of triangle `t` that the placement rules allow.
-pub fn best_side<const M: usize>(
-    work: &Work<M>,
-    t: usize,
-    sc: &mut Scratch<M>,
-) -> Result<(usize, Plan), Refusal> {
-    let mut best: Option<(usize, Plan)> = None;
-    let mut cause = Refusal::Link;
+/// The cheapest side of triangle `t` by the quick key that the placement rules allow.
+pub fn best_side<const M: usize>(work: &Work<M>, t: usize) -> Result<(usize, f64), Refusal> {
+    let mut best: Option<(usize, f64)> = None;
+    let mut cause = Refusal::Locked;
     for (i, side) in sides(work, t).iter().enumerate() {
-        match work.evaluate(side, sc) {
-            Ok(plan) => {
-                if best.as_ref().is_none_or(|(_, b)| plan.cost < b.cost) {
-                    best = Some((i, plan));
+        match work.quick_cost(side) {
+            Ok(cost) => {
+                if best.is_none_or(|(_, b)| cost < b) {
+                    best = Some((i, cost));
                 }
             }
-            Err(c) => cause = c,
+            // Locked only if every side is (then it stays so until the triangle dies).
+            Err(c) if c != Refusal::Locked => cause = c,
+            Err(_) => {}
         }
     }
     best.ok_or(cause)
@@ -44,9 +42,8 @@ pub fn attempt<const M: usize>(
     let mut costs: [(f64, usize); 3] = [(f64::INFINITY, 0); 3];
     let mut cause = Refusal::Link;
     for (i, side) in all.iter().enumerate() {
-        stats.evaluations += 1;
-        match work.evaluate(side, sc) {
-            Ok(plan) => costs[i] = (plan.cost, i),
+        match work.quick_cost(side) {
+            Ok(cost) => costs[i] = (cost, i),
             Err(c) => cause = c,
         }
     }

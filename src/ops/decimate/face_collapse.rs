@@ -37,7 +37,7 @@ fn key(cost: f64) -> u64 {
 }
 
 fn vertices<const M: usize>(work: &Work<M>, t: usize) -> [u32; 3] {
-    work.tris[t].map(|w| work.wvert[w as usize])
+    work.tv[t]
 }
 
 /// The priority of triangle `t`'s candidate, or why it has none.
@@ -46,14 +46,13 @@ fn candidate<const M: usize>(
     op: Operator,
     priority: Priority,
     t: usize,
-    sc: &mut Scratch<M>,
 ) -> Result<f64, Refusal> {
     match op {
         Operator::Face => match priority {
             Priority::Estimate => Ok(work.estimate(t)),
-            Priority::Quadric => work.evaluate(&vertices(work, t), sc).map(|p| p.cost),
+            Priority::Quadric => work.quick_cost(&vertices(work, t)),
         },
-        Operator::Edge => edge_collapse::best_side(work, t, sc).map(|(_, plan)| plan.cost),
+        Operator::Edge => edge_collapse::best_side(work, t).map(|(_, cost)| cost),
     }
 }
 
@@ -97,23 +96,27 @@ pub fn run<const M: usize>(
 ) -> LoopStats {
     let mut stats = LoopStats::default();
     let nt = work.tris.len();
-    let initial: Vec<Option<f64>> = {
+    let initial: Vec<Result<f64, Refusal>> = {
         let w: &Work<M> = work;
         (0..nt)
             .into_par_iter()
             .map_init(Scratch::<M>::default, |sc, t| {
-                candidate(w, op, priority, t, sc).ok()
+                let _ = sc;
+                candidate(w, op, priority, t)
             })
             .collect()
     };
     stats.evaluations += nt;
     let mut queued = vec![false; nt];
     let mut dirty = vec![false; nt];
+    // A triangle refused because two fixed vertices would merge stays refused until it is
+    // deleted (fixed vertices never go away), so it is never re-queued.
+    let mut frozen: Vec<bool> = initial.iter().map(|k| k == &Err(Refusal::Locked)).collect();
     let entries: Vec<Reverse<(u64, u32)>> = initial
         .iter()
         .enumerate()
         .filter_map(|(t, k)| {
-            k.map(|k| {
+            k.ok().map(|k| {
                 queued[t] = true;
                 Reverse((key(k), t as u32))
             })
@@ -130,18 +133,21 @@ pub fn run<const M: usize>(
         };
         let t = t as usize;
         queued[t] = false;
-        if work.tris[t][0] == NIL {
+        if work.tv[t][0] == NIL {
             continue;
         }
         if dirty[t] {
             dirty[t] = false;
             stats.evaluations += 1;
-            match candidate(work, op, priority, t, &mut sc) {
+            match candidate(work, op, priority, t) {
                 Ok(cost) => {
                     heap.push(Reverse((key(cost), t as u32)));
                     queued[t] = true;
                 }
-                Err(cause) => stats.refused.count(cause),
+                Err(cause) => {
+                    frozen[t] = cause == Refusal::Locked;
+                    stats.refused.count(cause)
+                }
             }
             continue;
         }
@@ -152,7 +158,7 @@ pub fn run<const M: usize>(
                 for &c in &sc.corners {
                     let u = c as usize / 3;
                     dirty[u] = true;
-                    if !queued[u] {
+                    if !queued[u] && !frozen[u] {
                         heap.push(Reverse((k, u as u32)));
                         queued[u] = true;
                     }

@@ -212,6 +212,82 @@ impl<const M: usize> Quadric<M> {
     }
 }
 
+/// The attribute part of a wedge quadric, `(Σ a·g_j, Σ a·d_j, Σ a)`: what the wedge-aware
+/// quadric keeps per wedge. The position part (`p`, `beta`, `c`) is additive over the wedges
+/// of a vertex, so the decimators keep it per vertex, already reduced (see [`Reduced`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttrPart<const M: usize> {
+    pub g: [[f64; 3]; M],
+    pub delta: [f64; M],
+    pub alpha: f64,
+}
+
+impl<const M: usize> Default for AttrPart<M> {
+    fn default() -> Self {
+        AttrPart {
+            g: [[0.0; 3]; M],
+            delta: [0.0; M],
+            alpha: 0.0,
+        }
+    }
+}
+
+impl<const M: usize> AttrPart<M> {
+    #[inline]
+    pub fn add(&mut self, o: &Self) {
+        for j in 0..M {
+            for k in 0..3 {
+                self.g[j][k] += o.g[j][k];
+            }
+            self.delta[j] += o.delta[j];
+        }
+        self.alpha += o.alpha;
+    }
+
+    /// Optimal attributes at `p` (§3.8 [D]), `None` without area.
+    #[inline]
+    pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
+        if !(self.alpha > 0.0) {
+            return None;
+        }
+        let mut s = [0.0; M];
+        for j in 0..M {
+            s[j] = (dot(self.g[j], p) + self.delta[j]) / self.alpha;
+        }
+        Some(s)
+    }
+
+    /// How much attributes `s` cost above the optimum at `p`: for fixed `p` the quadric is
+    /// `Σ_j w_j·α·(s_j − s*_j)²` plus its minimum.
+    #[inline]
+    pub fn excess(&self, p: [f64; 3], s: &[f64; M], w: &Weights<M>) -> f64 {
+        let Some(opt) = self.attributes_at(p) else {
+            return 0.0;
+        };
+        (0..M)
+            .map(|j| w.attr[j] * self.alpha * (s[j] - opt[j]).powi(2))
+            .sum()
+    }
+}
+
+impl<const M: usize> Quadric<M> {
+    /// Splits into the (unreduced) position part and the attribute part.
+    pub fn split(&self) -> (Reduced, AttrPart<M>) {
+        (
+            Reduced {
+                m: self.p,
+                r: self.beta,
+                c: self.c,
+            },
+            AttrPart {
+                g: self.g,
+                delta: self.delta,
+                alpha: self.alpha,
+            },
+        )
+    }
+}
+
 /// The wedge-aware vertex quadric (§5.6, eqs. 3.4–3.6) reduced to position by the Schur
 /// complement (§3.8): after the k wedge blocks are eliminated,
 /// `Q_red(p) = pᵀ M p + 2 rᵀ p + c_red` with
@@ -228,25 +304,39 @@ pub struct Reduced {
 impl Reduced {
     /// Adds one wedge block (one (3+m) quadric) to the system.
     pub fn add_wedge<const M: usize>(&mut self, q: &Quadric<M>, w: &Weights<M>) {
+        let (geo, attr) = q.split();
+        self.add(&geo);
+        self.schur(&attr, w, -1.0);
+    }
+
+    #[inline]
+    pub fn add(&mut self, o: &Reduced) {
         for k in 0..6 {
-            self.m[k] += q.p[k];
+            self.m[k] += o.m[k];
         }
         for k in 0..3 {
-            self.r[k] += q.beta[k];
+            self.r[k] += o.r[k];
         }
-        self.c += q.c;
-        if q.alpha > 0.0 {
-            for j in 0..M {
-                let f = w.attr[j] / q.alpha;
-                if f == 0.0 {
-                    continue;
-                }
-                sym_outer_add(&mut self.m, q.g[j], -f);
-                for k in 0..3 {
-                    self.r[k] -= f * q.delta[j] * q.g[j][k];
-                }
-                self.c -= f * q.delta[j] * q.delta[j];
+        self.c += o.c;
+    }
+
+    /// Adds `sign` times the Schur term of one wedge block: `sign = −1` eliminates the
+    /// block's attributes, `+1` undoes that (when two blocks merge into one).
+    #[inline]
+    pub fn schur<const M: usize>(&mut self, a: &AttrPart<M>, w: &Weights<M>, sign: f64) {
+        if !(a.alpha > 0.0) {
+            return;
+        }
+        for j in 0..M {
+            let f = sign * w.attr[j] / a.alpha;
+            if f == 0.0 {
+                continue;
             }
+            sym_outer_add(&mut self.m, a.g[j], f);
+            for k in 0..3 {
+                self.r[k] += f * a.delta[j] * a.g[j][k];
+            }
+            self.c += f * a.delta[j] * a.delta[j];
         }
     }
 

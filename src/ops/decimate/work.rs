@@ -11,7 +11,9 @@ use super::guards::{
     DEGENERATE_QUALITY, LinkScratch, LinkShape, SLIVER_QUALITY, VClass, link_shape, quality,
     uv_area,
 };
-use super::quadric::{Quadric, Reduced, Weights, cross, dense_condition_number, dot, sub};
+use super::quadric::{
+    AttrPart, Quadric, Reduced, Weights, cross, dense_condition_number, dot, sub,
+};
 use super::{BoundaryMode, Conditioning, Fallback, Refusal};
 use crate::mesh::{Index, Mesh, Wedge};
 use glam::{DVec2, DVec3};
@@ -52,13 +54,17 @@ pub struct Plan {
     pub cost: f64,
     pub error: f64,
     pub fallback: bool,
+    /// The merged vertex's reduced position system.
+    pub red: Reduced,
 }
 
 /// Wedges of the merged vertices that end up as one wedge (thesis §5.6 step 3).
 #[derive(Debug, Clone, Copy)]
 pub struct Group<const M: usize> {
     pub rep: u32,
-    pub q: Quadric<M>,
+    /// Number of wedges merged into this group.
+    pub size: u32,
+    pub q: AttrPart<M>,
     /// The wedge of S[i] in this group, or NIL.
     pub at: [u32; 3],
     pub attr: [f64; M],
@@ -140,11 +146,20 @@ pub struct Work<'a, const M: usize> {
     pub border: Vec<bool>,
     pub vfirst: Vec<u32>,
     pub cnext: Vec<u32>,
-    /// Wedge indices; `[NIL; 3]` once deleted.
+    /// Wedge indices of each triangle.
     pub tris: Vec<[u32; 3]>,
+    /// Vertex indices of each triangle; `[NIL; 3]` once deleted.
+    pub tv: Vec<[u32; 3]>,
     pub wvert: Vec<u32>,
     pub wattr: Vec<[f64; M]>,
-    pub wq: Vec<Quadric<M>>,
+    /// Unit normal of each input triangle (f32: only its direction is tested, and it is
+    /// read once per surviving triangle per collapse, so it should be compact).
+    pub onormal: Vec<[f32; 3]>,
+    /// Attribute part of each wedge quadric.
+    pub wq: Vec<AttrPart<M>>,
+    /// Position part of each vertex quadric, summed over its wedges and reduced (their
+    /// attribute blocks eliminated, §3.8).
+    pub vred: Vec<Reduced>,
     pub wchanged: Vec<bool>,
     pub live: usize,
     pub w: Weights<M>,
@@ -204,6 +219,7 @@ impl<'a, const M: usize> Work<'a, M> {
             vfirst[v] = c as u32;
         }
         let nw = wvert.len();
+        let tv: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|w| wvert[w as usize])).collect();
         let mut work = Work {
             input,
             center,
@@ -216,9 +232,21 @@ impl<'a, const M: usize> Work<'a, M> {
             cnext,
             live: tris.len(),
             tris,
+            tv,
             wvert,
             wattr,
             wq: Vec::new(),
+            vred: Vec::new(),
+            onormal: (0..input.triangles.len())
+                .into_par_iter()
+                .map(|t| {
+                    input
+                        .triangle_cross(t)
+                        .normalize_or_zero()
+                        .as_vec3()
+                        .to_array()
+                })
+                .collect(),
             wchanged: vec![false; nw],
             w,
             has_uv,
@@ -226,46 +254,58 @@ impl<'a, const M: usize> Work<'a, M> {
             cfg,
             classes: ClassCounts::default(),
         };
-        work.wq = work.wedge_quadrics();
+        work.quadrics();
         work.classify();
         work
     }
 
     /// Each wedge's quadric is the sum of the face quadrics of its triangles (§5.6
-    /// "Initial quadrics"), gathered per wedge in ascending corner order, so the result is
-    /// the same whatever the thread count.
-    fn wedge_quadrics(&self) -> Vec<Quadric<M>> {
-        let nw = self.wvert.len();
-        let mut offsets = vec![0u32; nw + 1];
-        for tri in &self.tris {
-            for &w in tri {
-                offsets[w as usize + 1] += 1;
-            }
-        }
-        for i in 0..nw {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut fill = offsets.clone();
-        let mut list = vec![0u32; self.tris.len() * 3];
-        for (t, tri) in self.tris.iter().enumerate() {
-            for &w in tri {
-                list[fill[w as usize] as usize] = t as u32;
-                fill[w as usize] += 1;
-            }
-        }
-        drop(fill);
-        (0..nw)
+    /// "Initial quadrics"); each vertex keeps the position part of its wedges' sum, reduced.
+    /// In parallel over vertices (a wedge belongs to one vertex), each sum in ascending
+    /// corner order, so the result is the same whatever the thread count.
+    fn quadrics(&mut self) {
+        const CHUNK: usize = 2048;
+        let nv = self.pos.len();
+        let chunks: Vec<(Vec<Reduced>, Vec<(u32, AttrPart<M>)>)> = (0..nv.div_ceil(CHUNK))
             .into_par_iter()
-            .map(|w| {
-                let mut q = Quadric::<M>::default();
-                for &t in &list[offsets[w] as usize..offsets[w + 1] as usize] {
-                    if let Some(f) = self.face_quadric(t as usize) {
-                        q.add(&f);
+            .map(|ci| {
+                let mut vred = Vec::with_capacity(CHUNK);
+                let mut wedges: Vec<(u32, AttrPart<M>)> = Vec::with_capacity(CHUNK + CHUNK / 4);
+                for v in ci * CHUNK..((ci + 1) * CHUNK).min(nv) {
+                    let mut red = Reduced::default();
+                    let first = wedges.len();
+                    let mut c = self.vfirst[v];
+                    while c != NIL {
+                        let (t, k) = (c as usize / 3, c as usize % 3);
+                        if let Some(q) = self.face_quadric(t) {
+                            let (geo, attr) = q.split();
+                            red.add(&geo);
+                            let w = self.tris[t][k];
+                            match wedges[first..].iter_mut().find(|e| e.0 == w) {
+                                Some(e) => e.1.add(&attr),
+                                None => wedges.push((w, attr)),
+                            }
+                        }
+                        c = self.cnext[c as usize];
                     }
+                    for (_, a) in &wedges[first..] {
+                        red.schur(a, &self.w, -1.0);
+                    }
+                    vred.push(red);
                 }
-                q
+                (vred, wedges)
             })
-            .collect()
+            .collect();
+        let mut wq = vec![AttrPart::<M>::default(); self.wvert.len()];
+        let mut vred = Vec::with_capacity(nv);
+        for (vr, ws) in chunks {
+            vred.extend(vr);
+            for (w, a) in ws {
+                wq[w as usize] = a;
+            }
+        }
+        self.wq = wq;
+        self.vred = vred;
     }
 
     fn face_quadric(&self, t: usize) -> Option<Quadric<M>> {
@@ -273,11 +313,6 @@ impl<'a, const M: usize> Work<'a, M> {
         let p = tri.map(|w| self.pos[self.wvert[w as usize] as usize]);
         let s = tri.map(|w| self.wattr[w as usize]);
         Quadric::from_triangle(p, s, &self.w)
-    }
-
-    #[inline]
-    fn alive(&self, t: usize) -> bool {
-        self.tris[t][0] != NIL
     }
 
     #[inline]
@@ -291,7 +326,7 @@ impl<'a, const M: usize> Work<'a, M> {
         struct Info {
             class: VClass,
             border: bool,
-            planes: Vec<(u32, [f64; 3], [f64; 3], f64)>,
+            planes: Vec<([f64; 3], [f64; 3], f64)>,
         }
         let infos: Vec<Info> = (0..self.pos.len())
             .into_par_iter()
@@ -371,7 +406,7 @@ impl<'a, const M: usize> Work<'a, M> {
                                         if l > 0.0 {
                                             let pn = pn.map(|c| c / l);
                                             let weight = self.cfg.boundary_weight * dot(e, e);
-                                            planes.push((tri_i[ki], pn, pv, weight));
+                                            planes.push((pn, pv, weight));
                                         }
                                     }
                                 }
@@ -425,8 +460,8 @@ impl<'a, const M: usize> Work<'a, M> {
                 VClass::Seam => self.classes.seam += 1,
                 VClass::Fixed => self.classes.fixed += 1,
             }
-            for (wedge, n, point, weight) in info.planes {
-                self.wq[wedge as usize].add(&Quadric::plane(n, point, weight));
+            for (n, point, weight) in info.planes {
+                self.vred[v].add_plane(&Quadric::<M>::plane(n, point, weight));
             }
         }
     }
@@ -449,105 +484,25 @@ impl<'a, const M: usize> Work<'a, M> {
         }
     }
 
-    /// Gathers the star of S, groups the wedges and places the merged vertex.
-    pub fn evaluate(&self, s: &[u32], sc: &mut Scratch<M>) -> Result<Plan, Refusal> {
+    /// The placement rules from the vertex classes (seam and border rules). A seam
+    /// (border) vertex only moves along its seam (border): onto a neighbour across a seam
+    /// (border) edge, so that output seams run through input seam vertices only (as
+    /// meshoptimizer's seam collapses, peers.md §2.1); a fixed vertex may absorb such a
+    /// neighbour the same way, and interior vertices merge into whichever of these they
+    /// meet. Returns up to two candidate anchors (indices into S; none = free placement).
+    /// `along(i, j)` says whether S[i]–S[j] is a seam (border) edge; `None` skips that
+    /// test (the cheap heap key).
+    fn rules(
+        &self,
+        s: &[u32],
+        along: Option<&dyn Fn(usize, usize, bool) -> bool>,
+    ) -> Result<[usize; 2], Refusal> {
         let ns = s.len();
-        sc.ns = ns;
-        sc.s = [NIL; 3];
-        sc.s[..ns].copy_from_slice(s);
-        sc.corners.clear();
-        sc.dead.clear();
-        sc.lw.clear();
-        sc.lw_si.clear();
-        sc.groups.clear();
-        let in_s = |v: u32| s.iter().position(|&x| x == v);
-        for (si, &v) in s.iter().enumerate() {
-            let mut c = self.vfirst[v as usize];
-            while c != NIL {
-                let (t, k) = (c as usize / 3, c as usize % 3);
-                if self.alive(t) {
-                    let tri = self.tris[t];
-                    let vs = tri.map(|w| self.wvert[w as usize]);
-                    let mut count = 0;
-                    let mut first = 3;
-                    for (kk, &x) in vs.iter().enumerate() {
-                        if in_s(x).is_some() {
-                            count += 1;
-                            first = first.min(kk);
-                        }
-                    }
-                    if count >= 2 {
-                        if first == k {
-                            sc.dead.push(t as u32);
-                        }
-                    } else {
-                        sc.corners.push(c);
-                    }
-                    let w = tri[k];
-                    if !sc.lw.contains(&w) {
-                        sc.lw.push(w);
-                        sc.lw_si.push(si as u8);
-                    }
-                }
-                c = self.cnext[c as usize];
-            }
+        if s.iter()
+            .all(|&v| self.placement_class(v) == VClass::Interior)
+        {
+            return Ok([usize::MAX; 2]);
         }
-        if sc.dead.is_empty() {
-            return Err(Refusal::Link);
-        }
-        // Wedge merging (§5.6 step 3): the wedges at S of each deleted triangle unite.
-        sc.lw_parent.clear();
-        sc.lw_parent.extend(0..sc.lw.len() as u32);
-        for d in 0..sc.dead.len() {
-            let tri = self.tris[sc.dead[d] as usize];
-            let mut root = usize::MAX;
-            for &w in &tri {
-                if in_s(self.wvert[w as usize]).is_none() {
-                    continue;
-                }
-                let l = sc.local(w);
-                let r = sc.find(l);
-                if root == usize::MAX {
-                    root = r;
-                } else if r != root {
-                    let (a, b) = (root.min(r), root.max(r));
-                    sc.lw_parent[b] = a as u32;
-                    root = a;
-                }
-            }
-        }
-        sc.lw_group.clear();
-        sc.lw_group.resize(sc.lw.len(), NIL);
-        for l in 0..sc.lw.len() {
-            let r = sc.find(l);
-            if sc.lw_group[r] == NIL {
-                sc.lw_group[r] = sc.groups.len() as u32;
-                sc.groups.push(Group {
-                    rep: sc.lw[r],
-                    q: Quadric::default(),
-                    at: [NIL; 3],
-                    attr: [0.0; M],
-                });
-            }
-            let g = sc.lw_group[r];
-            sc.lw_group[l] = g;
-            let w = sc.lw[l];
-            let si = sc.lw_si[l] as usize;
-            let group = &mut sc.groups[g as usize];
-            if group.at[si] != NIL {
-                // Two wedges of one vertex would merge: a seam would close.
-                return Err(Refusal::Seam);
-            }
-            group.at[si] = w;
-            group.rep = group.rep.min(w);
-            group.q.add(&self.wq[w as usize]);
-        }
-
-        // Placement from the vertex classes (seam and border rules). A seam (border) vertex
-        // only moves along its seam (border): onto a neighbour across a seam (border) edge,
-        // so that output seams run through input seam vertices only (as meshoptimizer's
-        // seam collapses, peers.md §2.1); a fixed vertex may absorb such a neighbour the
-        // same way, and interior vertices merge into whichever of these they meet.
         let classes = [0, 1, 2].map(|i| {
             if i < ns {
                 self.placement_class(s[i])
@@ -563,13 +518,7 @@ impl<'a, const M: usize> Work<'a, M> {
         );
         let feature = |c: VClass| c == VClass::Seam || c == VClass::Border;
         let first = |f: &dyn Fn(VClass) -> bool| classes[..ns].iter().position(|&c| f(c));
-        let along = |i: usize, j: usize| {
-            if seam > 0 {
-                self.is_seam_edge(s[i], s[j], sc)
-            } else {
-                self.is_border_edge(s[i], s[j], sc)
-            }
-        };
+        let on = |i: usize, j: usize| along.is_none_or(|f| f(i, j, seam > 0));
         let cause = if seam > 0 {
             Refusal::Seam
         } else {
@@ -586,7 +535,7 @@ impl<'a, const M: usize> Work<'a, M> {
                 0 => anchors[0] = f,
                 1 => {
                     let i = first(&feature).unwrap_or(0);
-                    if !along(f, i) {
+                    if !on(f, i) {
                         return Err(cause);
                     }
                     anchors[0] = f;
@@ -600,7 +549,7 @@ impl<'a, const M: usize> Work<'a, M> {
                 2 => {
                     let i = first(&feature).unwrap_or(0);
                     let j = (i + 1..ns).find(|&j| feature(classes[j])).unwrap_or(i);
-                    if !along(i, j) {
+                    if !on(i, j) {
                         return Err(cause);
                     }
                     anchors = [i, j];
@@ -608,85 +557,230 @@ impl<'a, const M: usize> Work<'a, M> {
                 _ => return Err(cause),
             }
         }
-        let placement = if anchors[0] == usize::MAX {
-            Placement::Free
-        } else {
-            Placement::Anchor(anchors[0])
-        };
+        Ok(anchors)
+    }
 
-        let mut red = Reduced::default();
-        for g in &sc.groups {
-            red.add_wedge(&g.q, &self.w);
-        }
-        let mut fallback = false;
-        let (p, placement) = match placement {
-            Placement::Free => {
-                let mut mean = [0.0; 3];
-                for &v in s {
-                    let pv = self.pos[v as usize];
-                    for k in 0..3 {
-                        mean[k] += pv[k] / ns as f64;
-                    }
+    /// Places the merged vertex for a reduced system: free (minimiser, with the
+    /// ill-conditioned fallback) or at the cheaper of the anchors.
+    fn place(
+        &self,
+        s: &[u32],
+        anchors: [usize; 2],
+        red: &Reduced,
+        dense: Option<&mut Vec<Quadric<M>>>,
+    ) -> ([f64; 3], Placement, bool) {
+        if anchors[0] != usize::MAX {
+            let i = anchors[0];
+            let pi = self.pos[s[i] as usize];
+            if anchors[1] != usize::MAX {
+                let j = anchors[1];
+                let pj = self.pos[s[j] as usize];
+                if red.eval(pj) < red.eval(pi) {
+                    return (pj, Placement::Anchor(j), false);
                 }
-                let regularise = self.cfg.fallback == Fallback::Regularised;
-                match self.cfg.conditioning {
-                    Conditioning::Reduced => {
-                        let (p, fb) = red.minimise(mean, self.cfg.max_condition, regularise);
-                        fallback = fb;
-                        (p, Placement::Free)
-                    }
-                    Conditioning::ThesisLiteral => {
-                        sc.dense.clear();
-                        sc.dense.extend(sc.groups.iter().map(|g| g.q));
-                        let cond = dense_condition_number(&sc.dense, &self.w);
-                        if cond > self.cfg.max_condition {
-                            fallback = true;
-                            (mean, Placement::Free)
-                        } else {
-                            let (p, fb) = red.minimise(mean, f64::INFINITY, regularise);
-                            fallback = fb;
-                            (p, Placement::Free)
+            }
+            return (pi, Placement::Anchor(i), false);
+        }
+        let mut mean = [0.0; 3];
+        for &v in s {
+            let pv = self.pos[v as usize];
+            for k in 0..3 {
+                mean[k] += pv[k] / s.len() as f64;
+            }
+        }
+        let regularise = self.cfg.fallback == Fallback::Regularised;
+        match (self.cfg.conditioning, dense) {
+            (Conditioning::ThesisLiteral, Some(dense)) => {
+                let cond = dense_condition_number(dense, &self.w);
+                if cond > self.cfg.max_condition {
+                    (mean, Placement::Free, true)
+                } else {
+                    let (p, fb) = red.minimise(mean, f64::INFINITY, regularise);
+                    (p, Placement::Free, fb)
+                }
+            }
+            _ => {
+                let (p, fb) = red.minimise(mean, self.cfg.max_condition, regularise);
+                (p, Placement::Free, fb)
+            }
+        }
+    }
+
+    /// The heap key of merging S without gathering its star: the vertices' reduced systems
+    /// summed (wedge merging ignored, which only changes the attribute terms) and placed by
+    /// the class rules. [`Work::evaluate`] computes the exact plan when the key comes up.
+    pub fn quick_cost(&self, s: &[u32]) -> Result<f64, Refusal> {
+        let anchors = self.rules(s, None)?;
+        let mut red = Reduced::default();
+        for &v in s {
+            red.add(&self.vred[v as usize]);
+        }
+        let (p, _, _) = self.place(s, anchors, &red, None);
+        Ok(red.eval(p))
+    }
+
+    /// Gathers the star of S, groups the wedges and places the merged vertex.
+    pub fn evaluate(&self, s: &[u32], sc: &mut Scratch<M>) -> Result<Plan, Refusal> {
+        let ns = s.len();
+        sc.ns = ns;
+        sc.s = [NIL; 3];
+        sc.s[..ns].copy_from_slice(s);
+        sc.corners.clear();
+        sc.dead.clear();
+        sc.lw.clear();
+        sc.lw_si.clear();
+        sc.groups.clear();
+        for (si, &v) in s.iter().enumerate() {
+            let mut c = self.vfirst[v as usize];
+            while c != NIL {
+                let (t, k) = (c as usize / 3, c as usize % 3);
+                let vs = self.tv[t];
+                if vs[0] != NIL {
+                    let mut count = 0;
+                    let mut first = 3;
+                    for (kk, &x) in vs.iter().enumerate() {
+                        if x == s[0] || (ns > 1 && x == s[1]) || (ns > 2 && x == s[2]) {
+                            count += 1;
+                            first = first.min(kk);
                         }
                     }
+                    if count >= 2 {
+                        if first == k {
+                            sc.dead.push(t as u32);
+                        }
+                    } else {
+                        sc.corners.push(c);
+                    }
+                    let w = self.tris[t][k];
+                    if !sc.lw.contains(&w) {
+                        sc.lw.push(w);
+                        sc.lw_si.push(si as u8);
+                    }
+                }
+                c = self.cnext[c as usize];
+            }
+        }
+        if sc.dead.is_empty() {
+            return Err(Refusal::Link);
+        }
+        // Wedge merging (§5.6 step 3): the wedges at S of each deleted triangle unite.
+        sc.lw_parent.clear();
+        sc.lw_parent.extend(0..sc.lw.len() as u32);
+        for d in 0..sc.dead.len() {
+            let t = sc.dead[d] as usize;
+            let (tri, vs) = (self.tris[t], self.tv[t]);
+            let mut root = usize::MAX;
+            for k in 0..3 {
+                if !s.contains(&vs[k]) {
+                    continue;
+                }
+                let l = sc.local(tri[k]);
+                let r = sc.find(l);
+                if root == usize::MAX {
+                    root = r;
+                } else if r != root {
+                    let (a, b) = (root.min(r), root.max(r));
+                    sc.lw_parent[b] = a as u32;
+                    root = a;
                 }
             }
-            Placement::Anchor(i) => (self.pos[s[i] as usize], placement),
-        };
-        // Two seam (border) vertices: slide whichever is cheaper onto the other.
-        let (p, placement) = if anchors[1] != usize::MAX {
-            let (i, j) = (anchors[0], anchors[1]);
-            let (pi, pj) = (self.pos[s[i] as usize], self.pos[s[j] as usize]);
-            if red.eval(pj) < red.eval(pi) {
-                (pj, Placement::Anchor(j))
-            } else {
-                (pi, Placement::Anchor(i))
+        }
+        sc.lw_group.clear();
+        sc.lw_group.resize(sc.lw.len(), NIL);
+        let mut red = Reduced::default();
+        for &v in s {
+            red.add(&self.vred[v as usize]);
+        }
+        for l in 0..sc.lw.len() {
+            let r = sc.find(l);
+            if sc.lw_group[r] == NIL {
+                sc.lw_group[r] = sc.groups.len() as u32;
+                sc.groups.push(Group {
+                    rep: sc.lw[r],
+                    size: 0,
+                    q: AttrPart::default(),
+                    at: [NIL; 3],
+                    attr: [0.0; M],
+                });
             }
-        } else {
-            (p, placement)
+            let g = sc.lw_group[r];
+            sc.lw_group[l] = g;
+            let w = sc.lw[l];
+            let si = sc.lw_si[l] as usize;
+            let group = &mut sc.groups[g as usize];
+            if group.at[si] != NIL {
+                // Two wedges of one vertex would merge: a seam would close.
+                return Err(Refusal::Seam);
+            }
+            group.at[si] = w;
+            group.rep = group.rep.min(w);
+            group.size += 1;
+            group.q.add(&self.wq[w as usize]);
+        }
+        // Merged wedges: their separate Schur terms give way to the merged block's.
+        if sc.groups.len() < sc.lw.len() {
+            for l in 0..sc.lw.len() {
+                if sc.groups[sc.lw_group[l] as usize].size > 1 {
+                    red.schur(&self.wq[sc.lw[l] as usize], &self.w, 1.0);
+                }
+            }
+            for g in &sc.groups {
+                if g.size > 1 {
+                    red.schur(&g.q, &self.w, -1.0);
+                }
+            }
+        }
+
+        let along = |i: usize, j: usize, seam: bool| {
+            if seam {
+                self.is_seam_edge(s[i], s[j], &sc.dead)
+            } else {
+                self.is_border_edge(s[i], s[j], &sc.dead)
+            }
         };
+        let anchors = self.rules(s, Some(&along))?;
+        let dense = if self.cfg.conditioning == Conditioning::ThesisLiteral {
+            sc.dense.clear();
+            for g in &sc.groups {
+                let mut q = Quadric::<M>::default();
+                (q.g, q.delta, q.alpha) = (g.q.g, g.q.delta, g.q.alpha);
+                q.p = red.m;
+                q.beta = red.r;
+                sc.dense.push(q);
+            }
+            // The position block appears once: keep it in the first wedge only.
+            for q in sc.dense.iter_mut().skip(1) {
+                q.p = [0.0; 6];
+                q.beta = [0.0; 3];
+            }
+            Some(&mut sc.dense)
+        } else {
+            None
+        };
+        let (p, placement, fallback) = self.place(s, anchors, &red, dense);
         if !p.iter().all(|c| c.is_finite()) {
             return Err(Refusal::Degenerate);
         }
 
         // Attributes of each merged wedge.
-        let mut cost = 0.0;
+        let mut cost = red.eval(p);
         let mut area = 0.0;
         for g in sc.groups.iter_mut() {
-            let own = |w: u32| -> Option<[f64; M]> { (w != NIL).then(|| self.wattr[w as usize]) };
-            let attr = match placement {
-                Placement::Anchor(i) => own(g.at[i]),
-                Placement::Free => None,
+            let anchored = match placement {
+                Placement::Anchor(i) if g.at[i] != NIL => Some(g.at[i]),
+                _ => None,
             };
-            g.attr = attr
-                .or_else(|| g.q.attributes_at(p))
-                .unwrap_or(self.wattr[g.rep as usize]);
-            if let Placement::Anchor(i) = placement
-                && g.at[i] != NIL
-            {
-                // The anchor's wedge keeps its identity (and so its texture coordinate).
-                g.rep = g.at[i];
+            g.attr = match anchored {
+                // The anchor's wedge keeps its identity and its attributes.
+                Some(w) => {
+                    g.rep = w;
+                    self.wattr[w as usize]
+                }
+                None => g.q.attributes_at(p).unwrap_or(self.wattr[g.rep as usize]),
+            };
+            if anchored.is_some() {
+                cost += g.q.excess(p, &g.attr, &self.w);
             }
-            cost += g.q.eval(p, &g.attr, &self.w);
             area += g.q.alpha;
         }
         let cost = cost.max(0.0);
@@ -701,17 +795,17 @@ impl<'a, const M: usize> Work<'a, M> {
             cost,
             error,
             fallback,
+            red,
         })
     }
 
     /// Is the edge between `a` and `b` (both in S) a seam edge? Its triangles are among the
     /// deleted ones.
-    fn is_seam_edge(&self, a: u32, b: u32, sc: &Scratch<M>) -> bool {
+    fn is_seam_edge(&self, a: u32, b: u32, dead: &[u32]) -> bool {
         let mut found: [usize; 2] = [usize::MAX; 2];
         let mut n = 0;
-        for &t in &sc.dead {
-            let tri = self.tris[t as usize];
-            let vs = tri.map(|w| self.wvert[w as usize]);
+        for &t in dead {
+            let vs = self.tv[t as usize];
             if vs.contains(&a) && vs.contains(&b) {
                 if n < 2 {
                     found[n] = t as usize;
@@ -723,10 +817,8 @@ impl<'a, const M: usize> Work<'a, M> {
             return false;
         }
         let wedge_at = |t: usize, v: u32| {
-            *self.tris[t]
-                .iter()
-                .find(|&&w| self.wvert[w as usize] == v)
-                .unwrap_or(&NIL)
+            let k = self.tv[t].iter().position(|&x| x == v).unwrap_or(0);
+            self.tris[t][k]
         };
         let (t0, t1) = (found[0], found[1]);
         wedge_at(t0, a) != wedge_at(t1, a)
@@ -734,11 +826,10 @@ impl<'a, const M: usize> Work<'a, M> {
             || self.input.triangle_material(t0) != self.input.triangle_material(t1)
     }
 
-    fn is_border_edge(&self, a: u32, b: u32, sc: &Scratch<M>) -> bool {
-        sc.dead
-            .iter()
+    fn is_border_edge(&self, a: u32, b: u32, dead: &[u32]) -> bool {
+        dead.iter()
             .filter(|&&t| {
-                let vs = self.tris[t as usize].map(|w| self.wvert[w as usize]);
+                let vs = self.tv[t as usize];
                 vs.contains(&a) && vs.contains(&b)
             })
             .count()
@@ -758,12 +849,13 @@ impl<'a, const M: usize> Work<'a, M> {
             let c = sc.corners[i] as usize;
             let (t, k) = (c / 3, c % 3);
             let tri = self.tris[t];
+            let vs = self.tv[t];
             let (wx, wy) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
-            let (vx, vy) = (self.wvert[wx as usize], self.wvert[wy as usize]);
+            let (vx, vy) = (vs[(k + 1) % 3], vs[(k + 2) % 3]);
             sc.link.push((vx, vy));
             let x = self.pos[vx as usize];
             let y = self.pos[vy as usize];
-            let old = self.pos[self.wvert[tri[k] as usize] as usize];
+            let old = self.pos[vs[k] as usize];
             let q_new = quality(p, x, y);
             if q_new < DEGENERATE_QUALITY || (q_new < SLIVER_QUALITY && q_new < quality(old, x, y))
             {
@@ -775,7 +867,7 @@ impl<'a, const M: usize> Work<'a, M> {
             if dot(n0, n1) < self.cfg.cos_max_normal_change * l0 * l1 {
                 return Err(Refusal::Flip);
             }
-            let origin = self.input.triangle_cross(t).to_array();
+            let origin = self.onormal[t].map(f64::from);
             if dot(origin, n1) <= 0.0 {
                 return Err(Refusal::Flip);
             }
@@ -828,6 +920,7 @@ impl<'a, const M: usize> Work<'a, M> {
         }
         self.class[n as usize] = class;
         self.border[n as usize] = border;
+        self.vred[n as usize] = plan.red;
         for g in &sc.groups {
             let r = g.rep as usize;
             self.wq[r] = g.q;
@@ -838,13 +931,14 @@ impl<'a, const M: usize> Work<'a, M> {
             }
         }
         for &t in &sc.dead {
-            self.tris[t as usize] = [NIL; 3];
+            self.tv[t as usize] = [NIL; 3];
         }
         self.live -= sc.dead.len();
         for &c in &sc.corners {
             let (t, k) = (c as usize / 3, c as usize % 3);
             let w = self.tris[t][k];
             self.tris[t][k] = sc.group_of(w).rep;
+            self.tv[t][k] = n;
         }
         // Relink n's corner list: exactly the surviving corners.
         let mut next = NIL;
@@ -860,7 +954,7 @@ impl<'a, const M: usize> Work<'a, M> {
     /// mean squared deviation of the corner values from their mean.
     pub fn estimate(&self, t: usize) -> f64 {
         let tri = self.tris[t];
-        let p = tri.map(|w| self.pos[self.wvert[w as usize] as usize]);
+        let p = self.tv[t].map(|v| self.pos[v as usize]);
         let a = tri.map(|w| self.wattr[w as usize]);
         let mut e = 0.0;
         for k in 0..3 {
@@ -924,7 +1018,7 @@ impl<'a, const M: usize> Work<'a, M> {
             })
             .collect();
         let keep: Vec<usize> = (0..self.tris.len())
-            .filter(|&t| self.tris[t][0] != NIL)
+            .filter(|&t| self.tv[t][0] != NIL)
             .collect();
         let mut mesh = Mesh {
             positions,
