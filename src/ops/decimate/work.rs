@@ -266,7 +266,8 @@ impl<'a, const M: usize> Work<'a, M> {
     fn quadrics(&mut self) {
         const CHUNK: usize = 2048;
         let nv = self.pos.len();
-        let chunks: Vec<(Vec<Reduced>, Vec<(u32, AttrPart<M>)>)> = (0..nv.div_ceil(CHUNK))
+        type Chunk<const M: usize> = (Vec<Reduced>, Vec<(u32, AttrPart<M>)>);
+        let chunks: Vec<Chunk<M>> = (0..nv.div_ceil(CHUNK))
             .into_par_iter()
             .map(|ci| {
                 let mut vred = Vec::with_capacity(CHUNK);
