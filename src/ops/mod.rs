@@ -2,4 +2,5 @@
 
 pub mod decimate;
 pub mod normals;
+pub mod seam_fix;
 pub mod subdivide;
