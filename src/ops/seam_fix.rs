@@ -96,7 +96,7 @@ fn project(tri: [DVec3; 3], p: DVec3) -> Option<(f64, f64)> {
     let (u, v) = (tri[1] - tri[0], tri[2] - tri[0]);
     let n = u.cross(v);
     let nn = n.length_squared();
-    if !(nn > 0.0) {
+    if nn.is_nan() || nn <= 0.0 {
         return None;
     }
     let b1 = v.cross(n) / nn;
