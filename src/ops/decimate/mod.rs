@@ -189,7 +189,7 @@ impl DecimateParams {
         Ok(())
     }
 
-    fn weight(&self, lambda: f64) -> f64 {
+    pub(crate) fn weight(&self, lambda: f64) -> f64 {
         if self.squared_weights {
             lambda * lambda
         } else {

@@ -255,3 +255,29 @@ fn params_validate_and_parse() {
     assert!(toml::from_str::<DecimateParams>("target = 3").is_err());
     let _ = DVec3::ZERO;
 }
+
+#[test]
+fn clustering_reaches_about_the_target_with_origins() {
+    let m = subdivide(&uv_sphere(1.0, 24, 48));
+    for method in [Method::Cluster, Method::ClusterKeep] {
+        let (out, r) = decimate(&m, &params(method, 800)).unwrap();
+        out.check_invariants().unwrap();
+        let n = out.triangles.len();
+        assert!(n <= 800 && n > 600, "{method:?}: {n} {r:?}");
+        assert_eq!(out.triangle_origins.len(), n);
+        assert!(r.clusters.is_some());
+        for p in &out.positions {
+            assert!(
+                (p.length() - 1.0).abs() < 0.05,
+                "{method:?}: {}",
+                p.length()
+            );
+        }
+        if method == Method::ClusterKeep {
+            // Original vertices only.
+            for p in &out.positions {
+                assert!(m.positions.contains(p));
+            }
+        }
+    }
+}
