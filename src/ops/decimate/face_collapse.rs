@@ -96,31 +96,31 @@ pub fn run<const M: usize>(
 ) -> LoopStats {
     let mut stats = LoopStats::default();
     let nt = work.tris.len();
-    let initial: Vec<Result<f64, Refusal>> = {
+    // Initial keys in parallel; u64::MAX marks "locked for good", MAX − 1 "refused now".
+    const LOCKED: u64 = u64::MAX;
+    const REFUSED: u64 = u64::MAX - 1;
+    let initial: Vec<u64> = {
         let w: &Work<M> = work;
         (0..nt)
             .into_par_iter()
-            .map_init(Scratch::<M>::default, |sc, t| {
-                let _ = sc;
-                candidate(w, op, priority, t)
+            .map(|t| match candidate(w, op, priority, t) {
+                Ok(k) => key(k),
+                Err(Refusal::Locked) => LOCKED,
+                Err(_) => REFUSED,
             })
             .collect()
     };
     stats.evaluations += nt;
-    let mut queued = vec![false; nt];
+    let mut queued: Vec<bool> = initial.iter().map(|&k| k < REFUSED).collect();
     let mut dirty = vec![false; nt];
     // A triangle refused because two fixed vertices would merge stays refused until it is
     // deleted (fixed vertices never go away), so it is never re-queued.
-    let mut frozen: Vec<bool> = initial.iter().map(|k| k == &Err(Refusal::Locked)).collect();
+    let mut frozen: Vec<bool> = initial.iter().map(|&k| k == LOCKED).collect();
     let entries: Vec<Reverse<(u64, u32)>> = initial
         .iter()
         .enumerate()
-        .filter_map(|(t, k)| {
-            k.ok().map(|k| {
-                queued[t] = true;
-                Reverse((key(k), t as u32))
-            })
-        })
+        .filter(|&(_, &k)| k < REFUSED)
+        .map(|(t, &k)| Reverse((k, t as u32)))
         .collect();
     drop(initial);
     let mut heap = BinaryHeap::from(entries);

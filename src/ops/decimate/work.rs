@@ -264,47 +264,80 @@ impl<'a, const M: usize> Work<'a, M> {
     /// In parallel over vertices (a wedge belongs to one vertex), each sum in ascending
     /// corner order, so the result is the same whatever the thread count.
     fn quadrics(&mut self) {
-        const CHUNK: usize = 2048;
-        let nv = self.pos.len();
-        type Chunk<const M: usize> = (Vec<Reduced>, Vec<(u32, AttrPart<M>)>);
-        let chunks: Vec<Chunk<M>> = (0..nv.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|ci| {
-                let mut vred = Vec::with_capacity(CHUNK);
-                let mut wedges: Vec<(u32, AttrPart<M>)> = Vec::with_capacity(CHUNK + CHUNK / 4);
-                for v in ci * CHUNK..((ci + 1) * CHUNK).min(nv) {
-                    let mut red = Reduced::default();
-                    let first = wedges.len();
-                    let mut c = self.vfirst[v];
-                    while c != NIL {
-                        let (t, k) = (c as usize / 3, c as usize % 3);
-                        if let Some(q) = self.face_quadric(t) {
-                            let (geo, attr) = q.split();
-                            red.add(&geo);
-                            let w = self.tris[t][k];
-                            match wedges[first..].iter_mut().find(|e| e.0 == w) {
-                                Some(e) => e.1.add(&attr),
-                                None => wedges.push((w, attr)),
-                            }
-                        }
-                        c = self.cnext[c as usize];
-                    }
-                    for (_, a) in &wedges[first..] {
-                        red.schur(a, &self.w, -1.0);
-                    }
-                    vred.push(red);
-                }
-                (vred, wedges)
-            })
-            .collect();
-        let mut wq = vec![AttrPart::<M>::default(); self.wvert.len()];
-        let mut vred = Vec::with_capacity(nv);
-        for (vr, ws) in chunks {
-            vred.extend(vr);
-            for (w, a) in ws {
-                wq[w as usize] = a;
+        // Wedge → triangles (CSR), so that each wedge gathers its own sum in parallel.
+        let nw = self.wvert.len();
+        let mut offsets = vec![0u32; nw + 1];
+        for tri in &self.tris {
+            for &w in tri {
+                offsets[w as usize + 1] += 1;
             }
         }
+        for i in 0..nw {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut list = vec![0u32; self.tris.len() * 3];
+        {
+            let mut fill = offsets.clone();
+            for (t, tri) in self.tris.iter().enumerate() {
+                for &w in tri {
+                    list[fill[w as usize] as usize] = t as u32;
+                    fill[w as usize] += 1;
+                }
+            }
+        }
+        let this = &*self;
+        let wq: Vec<AttrPart<M>> = (0..nw)
+            .into_par_iter()
+            .map(|w| {
+                let mut a = AttrPart::<M>::default();
+                for &t in &list[offsets[w] as usize..offsets[w + 1] as usize] {
+                    if let Some(q) = this.face_quadric(t as usize) {
+                        a.add(&q.split().1);
+                    }
+                }
+                a
+            })
+            .collect();
+        drop(list);
+        drop(offsets);
+        let vred: Vec<Reduced> = (0..this.pos.len())
+            .into_par_iter()
+            .map(|v| {
+                let mut red = Reduced::default();
+                let mut seen: [u32; 8] = [NIL; 8];
+                let mut c = this.vfirst[v];
+                while c != NIL {
+                    let (t, k) = (c as usize / 3, c as usize % 3);
+                    if let Some(q) = this.face_quadric(t) {
+                        red.add(&q.split().0);
+                    }
+                    let w = this.tris[t][k];
+                    // Each wedge's Schur term once (a vertex rarely has more than 8 wedges;
+                    // beyond that a linear scan of the earlier corners decides).
+                    let first = match seen.iter().position(|&x| x == w || x == NIL) {
+                        Some(i) if seen[i] == w => false,
+                        Some(i) => {
+                            seen[i] = w;
+                            true
+                        }
+                        None => {
+                            let mut e = this.vfirst[v];
+                            let mut earlier = false;
+                            while e != c {
+                                earlier |= this.tris[e as usize / 3][e as usize % 3] == w;
+                                e = this.cnext[e as usize];
+                            }
+                            !earlier
+                        }
+                    };
+                    if first {
+                        red.schur(&wq[w as usize], &this.w, -1.0);
+                    }
+                    c = this.cnext[c as usize];
+                }
+                red
+            })
+            .collect();
         self.wq = wq;
         self.vred = vred;
     }
