@@ -1,5 +1,7 @@
 //! Processing steps, one module each; every step is a function over the mesh.
 
 pub mod crop;
+pub mod decimate;
 pub mod normals;
+pub mod seam_fix;
 pub mod subdivide;

@@ -6,7 +6,9 @@ pub mod runner;
 
 use crate::metrics::MetricsOptions;
 use crate::ops::crop::CropParams;
+use crate::ops::decimate::DecimateParams;
 use crate::ops::normals::NormalsParams;
+use crate::ops::seam_fix::SeamFixParams;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -94,8 +96,8 @@ pub enum Step {
     Relax(PendingParams),
     Fair(PendingParams),
     Smooth(PendingParams),
-    Decimate(PendingParams),
-    SeamFix(PendingParams),
+    Decimate(DecimateParams),
+    SeamFix(SeamFixParams),
     Normals(NormalsParams),
 }
 
@@ -113,13 +115,18 @@ impl Step {
     }
 
     fn is_implemented(&self) -> bool {
-        matches!(self, Step::Normals(_) | Step::Crop(_))
+        matches!(
+            self,
+            Step::Normals(_) | Step::Crop(_) | Step::Decimate(_) | Step::SeamFix(_)
+        )
     }
 
     fn validate(&self) -> Result<(), String> {
         match self {
             Step::Normals(p) => p.validate(),
             Step::Crop(p) => p.validate(),
+            Step::Decimate(p) => p.validate(),
+            Step::SeamFix(p) => p.validate(),
             _ => Ok(()),
         }
     }
@@ -360,17 +367,35 @@ mod tests {
 
     #[test]
     fn pending_kind_is_a_clear_error() {
-        let e = parse(
-            "[[step]]\nkind = \"normals\"\n\n[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\n",
-        )
-        .unwrap_err();
+        let e = parse("[[step]]\nkind = \"normals\"\n\n[[step]]\nkind = \"crop\"\nmargin = 1\n")
+            .unwrap_err();
         match e {
             RecipeError::NotImplemented { line, kind, .. } => {
-                assert_eq!(kind, "decimate");
+                assert_eq!(kind, "crop");
                 assert_eq!(line, 4);
             }
             other => panic!("unexpected {other}"),
         }
+    }
+
+    #[test]
+    fn decimate_and_seam_fix_parse_and_validate() {
+        let r = parse(
+            "[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\nmethod = \"face-collapse\"\n\n[[step]]\nkind = \"seam_fix\"\n",
+        )
+        .unwrap();
+        assert_eq!(r.steps.len(), 2);
+        let e = parse("[[step]]\nkind = \"decimate\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 1") && e.contains("target_faces"), "{e}");
+        let e = parse("[[step]]\nkind = \"decimate\"\ntarget_faces = 10\nmethod = \"qem\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("face-collapse") && e.contains("cluster-keep"),
+            "{e}"
+        );
     }
 
     #[test]
