@@ -2,6 +2,7 @@
 
 pub mod crop;
 pub mod decimate;
+pub mod fair;
 pub mod normals;
 pub mod seam_fix;
 pub mod subdivide;

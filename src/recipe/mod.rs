@@ -7,6 +7,7 @@ pub mod runner;
 use crate::metrics::MetricsOptions;
 use crate::ops::crop::CropParams;
 use crate::ops::decimate::DecimateParams;
+use crate::ops::fair::{FairParams, RelaxParams};
 use crate::ops::normals::NormalsParams;
 use crate::ops::seam_fix::SeamFixParams;
 use serde::{Deserialize, Serialize};
@@ -93,8 +94,8 @@ pub type PendingParams = toml::Table;
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Step {
     Crop(CropParams),
-    Relax(PendingParams),
-    Fair(PendingParams),
+    Relax(RelaxParams),
+    Fair(FairParams),
     Smooth(PendingParams),
     Decimate(DecimateParams),
     SeamFix(SeamFixParams),
@@ -115,10 +116,7 @@ impl Step {
     }
 
     fn is_implemented(&self) -> bool {
-        matches!(
-            self,
-            Step::Normals(_) | Step::Crop(_) | Step::Decimate(_) | Step::SeamFix(_)
-        )
+        !matches!(self, Step::Smooth(_))
     }
 
     fn validate(&self) -> Result<(), String> {
@@ -127,6 +125,8 @@ impl Step {
             Step::Crop(p) => p.validate(),
             Step::Decimate(p) => p.validate(),
             Step::SeamFix(p) => p.validate(),
+            Step::Relax(p) => p.validate(),
+            Step::Fair(p) => p.validate(),
             _ => Ok(()),
         }
     }

@@ -50,6 +50,8 @@ fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_jso
             let input = input.ok_or("seam_fix needs the loaded input mesh")?;
             Ok(figures(ops::seam_fix::seam_fix(mesh, input, p)))
         }
+        Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
+        Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
         other => Err(format!(
             "step kind `{}` is not implemented in this version",
             other.kind()
