@@ -325,7 +325,8 @@ fn bbox_diagonal(points: &[DVec3]) -> f64 {
 }
 
 /// A triangle whose height is below 1e-12 of its longest edge has no area worth keeping.
-fn is_zero_area(a: DVec3, b: DVec3, c: DVec3) -> bool {
+/// Shared with `summary` so that `inspect` counts degenerate triangles by the same rule.
+pub(crate) fn is_zero_area(a: DVec3, b: DVec3, c: DVec3) -> bool {
     let cross = (b - a).cross(c - a).length();
     let longest = (b - a)
         .length_squared()

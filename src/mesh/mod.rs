@@ -6,7 +6,11 @@ pub mod error;
 pub mod model;
 pub mod ply;
 pub mod shapes;
+pub mod summary;
+pub mod topology;
 
 pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};
 pub use model::{Index, Material, Mesh, Texture, Wedge};
+pub use summary::MeshSummary;
+pub use topology::{BoundaryChain, EdgeKind, OrderedRing, Topology, TopologyCounts};

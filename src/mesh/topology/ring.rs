@@ -1,0 +1,104 @@
+//! The ordered 1-ring of a manifold vertex: its neighbours in turning order, as fairing
+//! and smoothing need them (cotangent weights, curvature).
+
+use super::{Topology, next_corner, prev_corner};
+
+/// The neighbours of a manifold vertex `v` in order around it, with the triangles between
+/// them: triangle `triangles[i]` has corners `v`, `vertices[i]`, `vertices[i + 1]`
+/// (indices wrapping around when `closed`).
+///
+/// When the fan is consistently oriented the order is counter-clockwise, i.e.
+/// `triangles[i]` runs `v → vertices[i] → vertices[i + 1]`. An interior vertex has a
+/// closed fan (`vertices.len() == triangles.len()`, starting at its lowest triangle); a
+/// boundary vertex has an open fan (`vertices.len() == triangles.len() + 1`) whose first
+/// and last vertices are its two boundary neighbours.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OrderedRing {
+    pub vertices: Vec<u32>,
+    pub triangles: Vec<u32>,
+    pub closed: bool,
+}
+
+impl Topology {
+    /// The ordered 1-ring of `v`, or `None` if `v` is non-manifold (see the module
+    /// documentation), used by no triangle, or on a triangle that repeats a vertex.
+    pub fn ordered_ring(&self, v: u32) -> Option<OrderedRing> {
+        let corners = self.vertex_corners(v);
+        if corners.is_empty() || self.is_non_manifold_vertex(v) {
+            return None;
+        }
+        // Triangle i (the i-th corner at v) is (v, ahead[i], behind[i]) in its orientation.
+        let mut ahead = Vec::with_capacity(corners.len());
+        let mut behind = Vec::with_capacity(corners.len());
+        for &c in corners {
+            let (a, b) = (
+                self.corner_vertex(next_corner(c)),
+                self.corner_vertex(prev_corner(c)),
+            );
+            if a == v || b == v || a == b {
+                return None;
+            }
+            ahead.push(a);
+            behind.push(b);
+        }
+        // (spoke vertex, triangle slot), sorted: the triangles on edge (v, spoke) are adjacent.
+        let mut spokes: Vec<(u32, u32)> = (0..corners.len() as u32)
+            .flat_map(|i| [(ahead[i as usize], i), (behind[i as usize], i)])
+            .collect();
+        spokes.sort_unstable();
+        let on_spoke = |s: u32| {
+            let start = spokes.partition_point(|&(x, _)| x < s);
+            let end = spokes.partition_point(|&(x, _)| x <= s);
+            &spokes[start..end]
+        };
+
+        // An open fan starts at a spoke with one triangle, preferably one its triangle
+        // leaves v along (so the walk is counter-clockwise); a closed fan at triangle 0.
+        let mut boundary_spokes = spokes
+            .chunk_by(|x, y| x.0 == y.0)
+            .filter(|run| run.len() == 1)
+            .map(|run| run[0]);
+        let (first_spoke, first_slot) = match boundary_spokes.next() {
+            None => (ahead[0], 0),
+            Some(one) => {
+                let other = boundary_spokes.next()?;
+                if ahead[one.1 as usize] != one.0 && ahead[other.1 as usize] == other.0 {
+                    other
+                } else {
+                    one
+                }
+            }
+        };
+
+        let mut vertices = vec![first_spoke];
+        let mut triangles = vec![corners[first_slot as usize] / 3];
+        let (mut slot, mut spoke) = (first_slot, first_spoke);
+        loop {
+            let i = slot as usize;
+            spoke = if ahead[i] == spoke {
+                behind[i]
+            } else {
+                ahead[i]
+            };
+            vertices.push(spoke);
+            let Some(&(_, next_slot)) = on_spoke(spoke).iter().find(|&&(_, j)| j != slot) else {
+                break; // open fan: reached the other boundary spoke
+            };
+            if next_slot == first_slot {
+                vertices.pop(); // closed fan: back at the first spoke
+                break;
+            }
+            if triangles.len() == corners.len() {
+                return None; // cannot happen for a single fan; never loop
+            }
+            triangles.push(corners[next_slot as usize] / 3);
+            slot = next_slot;
+        }
+        let closed = vertices.len() == triangles.len();
+        (triangles.len() == corners.len()).then_some(OrderedRing {
+            vertices,
+            triangles,
+            closed,
+        })
+    }
+}

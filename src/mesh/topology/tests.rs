@@ -1,0 +1,544 @@
+use super::*;
+use crate::mesh::model::{Mesh, Wedge};
+use glam::{DVec2, DVec3};
+use proptest::prelude::*;
+use std::collections::{BTreeMap, BTreeSet};
+
+/// A mesh with one wedge per (vertex, texcoord, normal) as given per corner.
+fn mesh_with_attributes(
+    positions: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    texcoords: Option<&[[u32; 3]]>,
+    normals: Option<&[[u32; 3]]>,
+) -> Mesh {
+    let mut wedge_ids: BTreeMap<Wedge, u32> = BTreeMap::new();
+    let mut wedges = Vec::new();
+    let mut max_uv = 0;
+    let mut max_n = 0;
+    let tris = triangles
+        .iter()
+        .enumerate()
+        .map(|(t, tri)| {
+            std::array::from_fn(|k| {
+                let w = Wedge {
+                    vertex: tri[k],
+                    texcoord: texcoords.map(|uv| uv[t][k]),
+                    normal: normals.map(|n| n[t][k]),
+                };
+                max_uv = max_uv.max(w.texcoord.map_or(0, |x| x + 1));
+                max_n = max_n.max(w.normal.map_or(0, |x| x + 1));
+                *wedge_ids.entry(w).or_insert_with(|| {
+                    wedges.push(w);
+                    (wedges.len() - 1) as u32
+                })
+            })
+        })
+        .collect();
+    let mesh = Mesh {
+        positions: positions.iter().map(|&p| DVec3::from(p)).collect(),
+        texcoords: (0..max_uv).map(|i| DVec2::new(i as f64, 0.0)).collect(),
+        normals: (0..max_n).map(|_| DVec3::Z).collect(),
+        wedges,
+        triangles: tris,
+        ..Default::default()
+    };
+    mesh.check_invariants().unwrap();
+    mesh
+}
+
+fn mesh(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Mesh {
+    mesh_with_attributes(positions, triangles, None, None)
+}
+
+const TETRA_POSITIONS: [[f64; 3]; 4] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+];
+/// Outward-facing (counter-clockwise seen from outside).
+const TETRA: [[u32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+
+fn quad_positions() -> [[f64; 3]; 4] {
+    [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ]
+}
+
+/// `n × n` vertices on the unit square, two triangles per cell, optionally leaving out
+/// the cells for which `skip(i, j)` holds.
+fn grid(n: u32, skip: impl Fn(u32, u32) -> bool) -> Mesh {
+    let mut positions = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            positions.push([i as f64, j as f64, 0.0]);
+        }
+    }
+    let mut tris = Vec::new();
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            if skip(i, j) {
+                continue;
+            }
+            let v = j * n + i;
+            tris.push([v, v + 1, v + n + 1]);
+            tris.push([v, v + n + 1, v + n]);
+        }
+    }
+    let mut m = mesh(&positions, &tris);
+    m.compact();
+    m
+}
+
+#[test]
+fn single_triangle() {
+    let m = mesh(&quad_positions()[..3], &[[0, 1, 2]]);
+    let topo = m.topology();
+    let c = topo.counts();
+    assert_eq!((c.vertices, c.triangles, c.wedges, c.edges), (3, 1, 3, 3));
+    assert_eq!(
+        (c.boundary_edges, c.boundary_loops, c.components),
+        (3, 1, 1)
+    );
+    assert_eq!(c.euler_characteristic, 1);
+    assert_eq!(c.non_manifold_vertices + c.non_manifold_edges, 0);
+    let l = &topo.boundary_chains()[0];
+    assert!(l.closed);
+    assert_eq!(l.vertices, vec![0, 1, 2]);
+    assert_eq!(l.edges.len(), 3);
+    assert_eq!(topo.edge_vertices(l.edges[2]), [0, 2]);
+    let ring = topo.ordered_ring(0).unwrap();
+    assert_eq!(ring.vertices, vec![1, 2]);
+    assert_eq!(ring.triangles, vec![0]);
+    assert!(!ring.closed);
+    assert!(topo.is_boundary_vertex(0));
+    assert_eq!(topo.vertex_neighbours(1), &[0, 2]);
+    assert_eq!(topo.find_edge(2, 1), Some(2));
+    assert_eq!(topo.find_edge(0, 0), None);
+    assert_eq!(topo.opposite_side(0), None);
+}
+
+#[test]
+fn two_triangles_without_seam() {
+    let m = mesh_with_attributes(
+        &quad_positions(),
+        &[[0, 1, 2], [0, 2, 3]],
+        Some(&[[0, 1, 2], [0, 2, 3]]),
+        None,
+    );
+    let topo = m.topology();
+    let c = topo.counts();
+    assert_eq!((c.edges, c.boundary_edges, c.boundary_loops), (5, 4, 1));
+    assert_eq!(
+        (c.seam_edges, c.texture_seam_edges, c.inconsistent_edges),
+        (0, 0, 0)
+    );
+    let diagonal = topo.find_edge(0, 2).unwrap();
+    assert_eq!(topo.edge_kind(diagonal), EdgeKind::Manifold);
+    assert_eq!(
+        topo.edge_triangles(diagonal).collect::<Vec<_>>(),
+        vec![0, 1]
+    );
+    // Side 2 of triangle 0 runs 2 → 0; its opposite is side 0 of triangle 1 (0 → 2).
+    assert_eq!(topo.opposite_side(2), Some(3));
+    assert_eq!(topo.boundary_chains()[0].vertices, vec![0, 1, 2, 3]);
+    let ring = topo.ordered_ring(0).unwrap();
+    assert_eq!((ring.vertices, ring.triangles), (vec![1, 2, 3], vec![0, 1]));
+    let ring = topo.ordered_ring(2).unwrap();
+    assert_eq!((ring.vertices, ring.triangles), (vec![3, 0, 1], vec![1, 0]));
+    assert_eq!(topo.euler_characteristic(), 1);
+}
+
+#[test]
+fn two_triangles_with_texture_seam() {
+    // Triangle 1 uses its own texture coordinates at vertices 0 and 2.
+    let m = mesh_with_attributes(
+        &quad_positions(),
+        &[[0, 1, 2], [0, 2, 3]],
+        Some(&[[0, 1, 2], [4, 5, 3]]),
+        None,
+    );
+    let topo = m.topology();
+    let c = topo.counts();
+    assert_eq!((c.seam_edges, c.texture_seam_edges), (1, 1));
+    assert_eq!((c.wedges, c.texcoords), (6, 6));
+    assert!(topo.is_texture_seam_edge(topo.find_edge(0, 2).unwrap()));
+
+    // Differing at one end only is still a seam.
+    let m = mesh_with_attributes(
+        &quad_positions(),
+        &[[0, 1, 2], [0, 2, 3]],
+        Some(&[[0, 1, 2], [0, 4, 3]]),
+        None,
+    );
+    assert_eq!(m.topology().counts().texture_seam_edges, 1);
+}
+
+#[test]
+fn normal_split_is_a_seam_but_not_a_texture_seam() {
+    let m = mesh_with_attributes(
+        &quad_positions(),
+        &[[0, 1, 2], [0, 2, 3]],
+        Some(&[[0, 1, 2], [0, 2, 3]]),
+        Some(&[[0, 0, 0], [1, 1, 1]]),
+    );
+    let c = m.topology().counts();
+    assert_eq!((c.seam_edges, c.texture_seam_edges), (1, 0));
+}
+
+#[test]
+fn closed_tetrahedron() {
+    let m = mesh(&TETRA_POSITIONS, &TETRA);
+    let topo = m.topology();
+    let c = topo.counts();
+    assert_eq!((c.vertices, c.edges, c.triangles), (4, 6, 4));
+    assert_eq!(
+        (c.boundary_edges, c.boundary_loops, c.components),
+        (0, 0, 1)
+    );
+    assert_eq!((c.inconsistent_edges, c.non_manifold_vertices), (0, 0));
+    assert_eq!(c.euler_characteristic, 2);
+    for v in 0..4 {
+        let ring = topo.ordered_ring(v).unwrap();
+        assert!(ring.closed);
+        assert_eq!(ring.vertices.len(), 3);
+        assert_eq!(topo.vertex_fan_count(v), 1);
+        // Counter-clockwise: each triangle runs v → ring[i] → ring[i + 1].
+        for i in 0..3 {
+            let tri = topo.triangle_vertices(ring.triangles[i]);
+            let k = tri.iter().position(|&x| x == v).unwrap();
+            assert_eq!(tri[(k + 1) % 3], ring.vertices[i]);
+            assert_eq!(tri[(k + 2) % 3], ring.vertices[(i + 1) % 3]);
+        }
+    }
+    assert_eq!(topo.ordered_ring(0).unwrap().triangles[0], 0);
+}
+
+#[test]
+fn flipped_triangle_in_closed_mesh() {
+    let mut tris = TETRA;
+    tris[3] = [1, 3, 2];
+    let m = mesh(&TETRA_POSITIONS, &tris);
+    let topo = m.topology();
+    let c = topo.counts();
+    assert_eq!(c.inconsistent_edges, 3);
+    assert_eq!((c.boundary_edges, c.non_manifold_vertices), (0, 0));
+    assert!(topo.is_inconsistent_edge(topo.find_edge(1, 2).unwrap()));
+    assert!(!topo.is_inconsistent_edge(topo.find_edge(0, 1).unwrap()));
+    // Rings still exist: they follow connectivity, not orientation.
+    assert!(topo.ordered_ring(1).unwrap().closed);
+}
+
+#[test]
+fn bowtie_is_a_non_manifold_vertex_with_two_chains_in_one_loop() {
+    let positions = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [-1.0, -1.0, 0.0],
+    ];
+    let m = mesh(&positions, &[[0, 1, 2], [0, 3, 4]]);
+    let topo = m.topology();
+    let c = topo.counts();
+    assert_eq!((c.non_manifold_vertices, c.non_manifold_edges), (1, 0));
+    assert_eq!(topo.non_manifold_vertices(), &[0]);
+    assert_eq!(topo.vertex_fan_count(0), 2);
+    assert_eq!(
+        (c.boundary_edges, c.boundary_loops, c.components),
+        (6, 1, 1)
+    );
+    assert_eq!((c.boundary_chains, c.open_boundary_chains), (2, 0));
+    let loops: Vec<_> = topo.boundary_chains().iter().map(|l| &l.vertices).collect();
+    assert_eq!(loops, vec![&vec![0, 1, 2], &vec![0, 3, 4]]);
+    assert!(
+        topo.boundary_chains()
+            .iter()
+            .all(|l| l.closed && l.boundary_loop == 0)
+    );
+    assert_eq!(topo.ordered_ring(0), None);
+    assert!(topo.ordered_ring(1).is_some());
+    assert_eq!(c.euler_characteristic, 1);
+}
+
+#[test]
+fn pinched_boundary_follows_fans() {
+    // Two fans meet at vertex 3. The walk from vertex 0 arrives at 3 through fan B, and
+    // the lowest edge leaving 3 (3 → 4) belongs to fan A: the fan rule must take 3 → 6.
+    let positions = [[0.0; 3]; 7];
+    // Fan B: (3,6,5),(3,5,0); fan A: (3,4,1),(3,1,2).
+    let m = mesh(&positions, &[[3, 6, 5], [3, 5, 0], [3, 4, 1], [3, 1, 2]]);
+    let topo = m.topology();
+    assert_eq!(topo.non_manifold_vertices(), &[3]);
+    let loops: Vec<_> = topo
+        .boundary_chains()
+        .iter()
+        .map(|l| (l.vertices.clone(), l.closed))
+        .collect();
+    assert_eq!(
+        loops,
+        vec![(vec![0, 3, 6, 5], true), (vec![1, 2, 3, 4], true)]
+    );
+    assert_eq!(topo.boundary_loop_count(), 1);
+}
+
+#[test]
+fn three_triangles_on_one_edge() {
+    let positions = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.5, 1.0, 0.0],
+        [0.5, -1.0, 0.0],
+        [0.5, 0.0, 1.0],
+    ];
+    let m = mesh(&positions, &[[0, 1, 2], [1, 0, 3], [0, 1, 4]]);
+    let topo = m.topology();
+    let c = topo.counts();
+    let e = topo.find_edge(0, 1).unwrap();
+    assert_eq!(topo.edge_kind(e), EdgeKind::NonManifold);
+    assert_eq!(topo.non_manifold_edges().collect::<Vec<_>>(), vec![e]);
+    assert_eq!((c.non_manifold_edges, c.non_manifold_vertices), (1, 2));
+    assert_eq!(topo.non_manifold_vertices(), &[0, 1]);
+    // Triangles 0 and 2 both run 0 → 1.
+    assert_eq!(c.inconsistent_edges, 1);
+    assert!(topo.is_inconsistent_edge(e));
+    assert_eq!(c.boundary_edges, 6);
+    let walked: usize = topo.boundary_chains().iter().map(|l| l.edges.len()).sum();
+    assert_eq!(walked, 6);
+    assert_eq!(
+        (c.boundary_loops, c.boundary_chains, c.open_boundary_chains),
+        (1, 2, 1)
+    );
+    assert_eq!(topo.ordered_ring(0), None);
+    assert!(topo.ordered_ring(2).is_some());
+}
+
+#[test]
+fn non_manifold_edges_count_repeated_directions_and_are_never_seams() {
+    // Four triangles on edge (0, 1), two each way, each with its own texture coordinates.
+    let positions = [[0.0; 3]; 6];
+    let tris = [[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 0, 5]];
+    let uvs = [[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 11]];
+    let m = mesh_with_attributes(&positions, &tris, Some(&uvs), None);
+    let c = m.topology().counts();
+    assert_eq!((c.non_manifold_edges, c.inconsistent_edges), (1, 2));
+    assert_eq!((c.seam_edges, c.texture_seam_edges), (0, 0));
+}
+
+#[test]
+fn square_with_hole() {
+    let m = grid(4, |i, j| i == 1 && j == 1);
+    let topo = m.topology();
+    let c = topo.counts();
+    assert_eq!((c.vertices, c.triangles), (16, 16));
+    assert_eq!(
+        (c.boundary_edges, c.boundary_loops, c.components),
+        (16, 2, 1)
+    );
+    assert_eq!(c.euler_characteristic, 0);
+    let loops = topo.boundary_chains();
+    assert!(loops.iter().all(|l| l.closed));
+    assert_eq!(loops[0].vertices.len(), 12);
+    // Outer loop counter-clockwise (surface on the left), hole clockwise.
+    assert_eq!(&loops[0].vertices[..4], &[0, 1, 2, 3]);
+    assert_eq!(loops[1].vertices, vec![5, 9, 10, 6]);
+    // A corner of the hole is a manifold boundary vertex with an open fan.
+    let ring = topo.ordered_ring(5).unwrap();
+    assert!(!ring.closed);
+    assert_eq!(ring.vertices.first(), Some(&9));
+    assert_eq!(ring.vertices.last(), Some(&6));
+    // An interior vertex of a full grid has a closed ring.
+    let full = grid(3, |_, _| false);
+    let ring = full.topology().ordered_ring(4).unwrap();
+    assert!(ring.closed);
+    assert_eq!(ring.vertices.len(), 6);
+}
+
+#[test]
+fn two_separate_triangles() {
+    let positions = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [5.0, 0.0, 0.0],
+        [6.0, 0.0, 0.0],
+        [5.0, 1.0, 0.0],
+    ];
+    let m = mesh(&positions, &[[3, 4, 5], [0, 1, 2]]);
+    let topo = m.topology();
+    assert_eq!(topo.component_count(), 2);
+    assert_eq!(topo.triangle_components(), &[0, 1]);
+    assert_eq!(topo.counts().boundary_loops, 2);
+    assert_eq!(topo.euler_characteristic(), 2);
+}
+
+#[test]
+fn empty_mesh_and_unused_vertex() {
+    let topo = Mesh::default().topology();
+    assert_eq!(topo.counts(), TopologyCounts::default());
+    let m = mesh(&TETRA_POSITIONS, &[[0, 1, 2]]);
+    let topo = m.topology();
+    assert_eq!(topo.ordered_ring(3), None);
+    assert_eq!(topo.vertex_fan_count(3), 0);
+    assert_eq!(topo.euler_characteristic(), 2);
+}
+
+#[test]
+fn repeated_vertex_does_not_panic() {
+    let m = mesh(&TETRA_POSITIONS, &[[0, 0, 1], [0, 1, 2]]);
+    let topo = m.topology();
+    assert_eq!(topo.triangle_edges(0)[0], NO_EDGE);
+    assert_eq!(topo.ordered_ring(0), None);
+    let _ = topo.counts();
+}
+
+#[test]
+fn counts_serialize() {
+    let json = serde_json::to_string(&mesh(&TETRA_POSITIONS, &TETRA).topology().counts()).unwrap();
+    assert!(json.contains("\"euler_characteristic\":2"));
+}
+
+// ----- properties on random meshes -----
+
+fn random_mesh() -> impl Strategy<Value = Mesh> {
+    (4u32..14).prop_flat_map(|n| {
+        let triangle = (0..n, 0..n, 0..n)
+            .prop_filter("distinct corners", |(a, b, c)| a != b && b != c && a != c)
+            .prop_map(|(a, b, c)| [a, b, c]);
+        (Just(n), proptest::collection::vec(triangle, 0..40)).prop_map(|(n, tris)| {
+            let positions: Vec<[f64; 3]> = (0..n).map(|i| [i as f64, 0.0, 0.0]).collect();
+            mesh(&positions, &tris)
+        })
+    })
+}
+
+/// A random patch of a grid: manifold, consistently oriented, possibly with holes and
+/// pinch vertices.
+fn random_grid_patch() -> impl Strategy<Value = Mesh> {
+    proptest::collection::vec(any::<bool>(), 36)
+        .prop_map(|keep| grid(7, |i, j| !keep[(j * 6 + i) as usize]))
+}
+
+fn check_common(m: &Mesh) -> Result<(), TestCaseError> {
+    let topo = m.topology();
+    let c = topo.counts();
+    let sides: usize = (0..c.edges as u32).map(|e| topo.edge_sides(e).len()).sum();
+    prop_assert_eq!(sides, 3 * c.triangles);
+
+    let unique: BTreeSet<[u32; 2]> = (0..m.triangles.len())
+        .flat_map(|t| {
+            let v = m.triangle_vertices(t);
+            (0..3).map(move |k| {
+                let (a, b) = (v[k], v[(k + 1) % 3]);
+                [a.min(b), a.max(b)]
+            })
+        })
+        .collect();
+    let unique_list: Vec<[u32; 2]> = unique.iter().copied().collect();
+    prop_assert_eq!(topo.edges(), unique_list.as_slice());
+    prop_assert_eq!(
+        c.euler_characteristic,
+        c.vertices as i64 - unique.len() as i64 + c.triangles as i64
+    );
+
+    // Every boundary edge is walked exactly once.
+    let mut walked: Vec<u32> = topo
+        .boundary_chains()
+        .iter()
+        .flat_map(|l| l.edges.iter().copied())
+        .collect();
+    walked.sort_unstable();
+    prop_assert_eq!(walked, topo.boundary_edges().collect::<Vec<_>>());
+    for l in topo.boundary_chains() {
+        prop_assert_eq!(l.vertices.len(), l.edges.len() + usize::from(!l.closed));
+        for (i, &e) in l.edges.iter().enumerate() {
+            let [a, b] = topo.edge_vertices(e);
+            let (p, q) = (l.vertices[i], l.vertices[(i + 1) % l.vertices.len()]);
+            prop_assert!([p.min(q), p.max(q)] == [a, b]);
+        }
+    }
+
+    // Loops are the connected pieces of the boundary-edge graph; chains sharing a vertex
+    // are in the same loop.
+    let mut piece: Vec<usize> = (0..c.vertices).collect();
+    fn root(piece: &mut [usize], mut x: usize) -> usize {
+        while piece[x] != x {
+            x = piece[x];
+        }
+        x
+    }
+    for e in topo.boundary_edges() {
+        let [a, b] = topo.edge_vertices(e);
+        let (ra, rb) = (root(&mut piece, a as usize), root(&mut piece, b as usize));
+        piece[ra] = rb;
+    }
+    let pieces: BTreeSet<usize> = topo
+        .boundary_edges()
+        .map(|e| root(&mut piece, topo.edge_vertices(e)[0] as usize))
+        .collect();
+    prop_assert_eq!(c.boundary_loops, pieces.len());
+    let mut loop_of_piece = BTreeMap::new();
+    for chain in topo.boundary_chains() {
+        for &v in &chain.vertices {
+            let r = root(&mut piece, v as usize);
+            prop_assert_eq!(
+                *loop_of_piece.entry(r).or_insert(chain.boundary_loop),
+                chain.boundary_loop
+            );
+        }
+    }
+
+    // Neighbours are symmetric; triangles sharing a vertex share a component.
+    for v in 0..c.vertices as u32 {
+        for &w in topo.vertex_neighbours(v) {
+            prop_assert!(topo.vertex_neighbours(w).contains(&v));
+        }
+        let mut comps = topo.vertex_triangles(v).map(|t| topo.triangle_component(t));
+        if let Some(first) = comps.next() {
+            prop_assert!(comps.all(|x| x == first));
+        }
+    }
+
+    // Rings cover their vertex's triangles, consecutive vertices around each triangle.
+    for v in 0..c.vertices as u32 {
+        let Some(ring) = topo.ordered_ring(v) else {
+            prop_assert!(topo.is_non_manifold_vertex(v) || topo.vertex_corners(v).is_empty());
+            continue;
+        };
+        let mut tris = ring.triangles.clone();
+        tris.sort_unstable();
+        prop_assert_eq!(tris, topo.vertex_triangles(v).collect::<Vec<_>>());
+        for (i, &t) in ring.triangles.iter().enumerate() {
+            let tri = topo.triangle_vertices(t);
+            let next = ring.vertices[(i + 1) % ring.vertices.len()];
+            prop_assert!(tri.contains(&ring.vertices[i]) && tri.contains(&next));
+        }
+        prop_assert_eq!(ring.closed, !topo.is_boundary_vertex(v));
+    }
+    Ok(())
+}
+
+proptest! {
+    #[test]
+    fn random_meshes_are_consistent(m in random_mesh()) {
+        check_common(&m)?;
+    }
+
+    #[test]
+    fn manifold_patches_have_closed_loops(m in random_grid_patch()) {
+        check_common(&m)?;
+        let topo = m.topology();
+        let c = topo.counts();
+        prop_assert_eq!(c.non_manifold_edges + c.inconsistent_edges, 0);
+        prop_assert_eq!(c.open_boundary_chains, 0);
+        let walked: usize = topo.boundary_chains().iter().map(|l| l.edges.len()).sum();
+        prop_assert_eq!(walked, c.boundary_edges);
+        // Manifold vertices form one fan; a pinch vertex is exactly a vertex with two.
+        for v in 0..c.vertices as u32 {
+            prop_assert_eq!(topo.is_non_manifold_vertex(v), topo.vertex_fan_count(v) > 1);
+        }
+    }
+}
