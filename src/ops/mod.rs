@@ -1,4 +1,5 @@
 //! Processing steps, one module each; every step is a function over the mesh.
 
 pub mod normals;
+pub mod smooth;
 pub mod subdivide;

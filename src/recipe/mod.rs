@@ -5,6 +5,7 @@
 pub mod runner;
 
 use crate::ops::normals::NormalsParams;
+use crate::ops::smooth::SmoothParams;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -91,7 +92,7 @@ pub enum Step {
     Crop(PendingParams),
     Relax(PendingParams),
     Fair(PendingParams),
-    Smooth(PendingParams),
+    Smooth(SmoothParams),
     Decimate(PendingParams),
     SeamFix(PendingParams),
     Normals(NormalsParams),
@@ -111,12 +112,13 @@ impl Step {
     }
 
     fn is_implemented(&self) -> bool {
-        matches!(self, Step::Normals(_))
+        matches!(self, Step::Normals(_) | Step::Smooth(_))
     }
 
     fn validate(&self) -> Result<(), String> {
         match self {
             Step::Normals(p) => p.validate(),
+            Step::Smooth(p) => p.validate(),
             _ => Ok(()),
         }
     }

@@ -34,6 +34,7 @@ fn figures<T: serde::Serialize>(value: T) -> serde_json::Value {
 fn apply(step: &Step, mesh: &mut Mesh) -> Result<serde_json::Value, String> {
     match step {
         Step::Normals(p) => Ok(figures(ops::normals::recompute_normals(mesh, p))),
+        Step::Smooth(p) => Ok(figures(ops::smooth::smooth(mesh, p))),
         other => Err(format!(
             "step kind `{}` is not implemented in this version",
             other.kind()
