@@ -15,8 +15,8 @@
 use super::error::{Location, MeshError, Result};
 use super::model::{Index, Material, Mesh, Wedge};
 use glam::{DVec2, DVec3};
+use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
 use serde::Serialize;
-use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// One face corner as a file states it: indices into the position, texture-coordinate and
@@ -121,11 +121,12 @@ impl MeshBuilder {
         self.report.merged_texcoords = self.texcoords.len() - texcoords.len();
         self.report.merged_normals = self.normals.len() - normals.len();
 
-        let mut wedge_ids: HashMap<Wedge, Index> = HashMap::new();
+        let mut wedge_ids: HashMap<Wedge, Index> = HashMap::default();
         let mut wedges: Vec<Wedge> = Vec::new();
         let mut triangles: Vec<[Index; 3]> = Vec::with_capacity(self.faces.len());
         let mut triangle_materials: Vec<Index> = Vec::new();
-        let mut seen_faces: HashSet<[Index; 3]> = HashSet::with_capacity(self.faces.len());
+        let mut seen_faces: HashSet<[Index; 3]> =
+            HashSet::with_capacity_and_hasher(self.faces.len(), Default::default());
         let has_materials = !self.face_materials.is_empty();
 
         for (f, face) in self.faces.iter().enumerate() {
@@ -142,6 +143,9 @@ impl MeshBuilder {
                 self.report.dropped_zero_area_faces += 1;
                 continue;
             }
+            // A duplicate uses the same three vertices, in either orientation (as MeshLab's
+            // "Remove Duplicate Faces" and the counts in data/SOURCES.md define it): a reversed
+            // copy is a zero-volume double layer, not surface.
             let mut key = v;
             key.sort_unstable();
             if !seen_faces.insert(key) {
@@ -268,7 +272,8 @@ impl MeshBuilder {
         let n = self.positions.len();
         let mut map: Vec<Index> = (0..n as Index).collect();
         if relative_tolerance <= 0.0 {
-            let mut first: HashMap<[u64; 3], Index> = HashMap::with_capacity(n);
+            let mut first: HashMap<[u64; 3], Index> =
+                HashMap::with_capacity_and_hasher(n, Default::default());
             for (i, &p) in self.positions.iter().enumerate() {
                 map[i] = *first.entry(position_key(p)).or_insert(i as Index);
             }
@@ -285,7 +290,7 @@ impl MeshBuilder {
             let q = (p / tol).floor();
             [q.x as i64, q.y as i64, q.z as i64]
         };
-        let mut grid: HashMap<[i64; 3], Vec<Index>> = HashMap::new();
+        let mut grid: HashMap<[i64; 3], Vec<Index>> = HashMap::default();
         for (i, &p) in self.positions.iter().enumerate() {
             let c = cell(p);
             let mut found: Option<Index> = None;
@@ -338,7 +343,8 @@ pub(crate) fn is_zero_area(a: DVec3, b: DVec3, c: DVec3) -> bool {
 
 /// Merges bit-identical values, keeping first occurrences in order.
 fn dedupe_by_bits<T: Copy>(values: &[T], key: impl Fn(T) -> [u64; 3]) -> (Vec<T>, Vec<Index>) {
-    let mut first: HashMap<[u64; 3], Index> = HashMap::with_capacity(values.len());
+    let mut first: HashMap<[u64; 3], Index> =
+        HashMap::with_capacity_and_hasher(values.len(), Default::default());
     let mut kept = Vec::with_capacity(values.len());
     let map = values
         .iter()
