@@ -23,6 +23,7 @@ mod laplace;
 mod taubin;
 
 use crate::mesh::Mesh;
+use crate::mesh::topology::Topology;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -492,45 +493,91 @@ pub struct SmoothReport {
 /// small enough that two cores share the work evenly.
 pub(crate) const CHUNK: usize = 4096;
 
+/// A prepared smoothing step: the adjacency (built once per step, CSR) and the parameters
+/// resolved against the mesh (the bilateral length unit). [`smooth`] is `new` + `run`;
+/// benchmarks use the two halves to time the passes alone.
+pub struct Smoother {
+    topology: Topology,
+    graph: SmoothGraph,
+    params: SmoothParams,
+    /// Model units per parameter unit for the bilateral lengths.
+    length_unit: f64,
+}
+
+/// What [`Smoother::run`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PassCounts {
+    pub passes: u32,
+    pub empty_neighbourhoods: u64,
+}
+
+impl Smoother {
+    pub fn new(mesh: &Mesh, params: &SmoothParams) -> Smoother {
+        let topology = mesh.topology();
+        let graph = SmoothGraph::new(&topology, params.boundary, uses_cotangent(params));
+        let length_unit = match params.method {
+            SmoothMethod::Bilateral(BilateralParams {
+                units: LengthUnits::MeanEdge,
+                ..
+            }) => mesh.mean_edge_length(),
+            _ => 1.0,
+        };
+        Smoother {
+            topology,
+            graph,
+            params: params.clone(),
+            length_unit,
+        }
+    }
+
+    pub fn graph(&self) -> &SmoothGraph {
+        &self.graph
+    }
+
+    /// Runs all iterations on `positions` (those of the mesh given to [`Smoother::new`]).
+    pub fn run(&self, positions: &mut Vec<DVec3>) -> PassCounts {
+        assert_eq!(positions.len(), self.graph.vertex_count(), "positions of another mesh");
+        let (graph, iterations, update) = (&self.graph, self.params.iterations, self.params.update);
+        let passes = match self.params.method {
+            SmoothMethod::Laplace(p) => laplace::run(graph, positions, &p, iterations, update),
+            SmoothMethod::Hc(p) => hc::run(graph, positions, &p, iterations),
+            SmoothMethod::Taubin(p) => taubin::run(graph, positions, &p, iterations, update),
+            SmoothMethod::Bilateral(p) => {
+                let out = bilateral::run(
+                    &self.topology,
+                    graph,
+                    positions,
+                    &p,
+                    self.length_unit,
+                    iterations,
+                );
+                return PassCounts {
+                    passes: out.passes,
+                    empty_neighbourhoods: out.empty_neighbourhoods,
+                };
+            }
+        };
+        PassCounts {
+            passes,
+            empty_neighbourhoods: 0,
+        }
+    }
+}
+
 /// Smooths `mesh` in place. Only `mesh.positions` change.
 pub fn smooth(mesh: &mut Mesh, params: &SmoothParams) -> SmoothReport {
     let start = std::time::Instant::now();
-    let topology = mesh.topology();
-    let graph = SmoothGraph::new(&topology, params.boundary, uses_cotangent(params));
+    let smoother = Smoother::new(mesh, params);
     let built = start.elapsed();
     let before = mesh.positions.clone();
     let start = std::time::Instant::now();
-    let mut empty_neighbourhoods = 0;
-    let passes = match params.method {
-        SmoothMethod::Laplace(p) => {
-            laplace::run(&graph, &mut mesh.positions, &p, params.iterations, params.update)
-        }
-        SmoothMethod::Hc(p) => hc::run(&graph, &mut mesh.positions, &p, params.iterations),
-        SmoothMethod::Taubin(p) => {
-            taubin::run(&graph, &mut mesh.positions, &p, params.iterations, params.update)
-        }
-        SmoothMethod::Bilateral(p) => {
-            let unit = match p.units {
-                LengthUnits::MeanEdge => mesh.mean_edge_length(),
-                LengthUnits::Absolute => 1.0,
-            };
-            let out = bilateral::run(
-                &topology,
-                &graph,
-                &mut mesh.positions,
-                &p,
-                unit,
-                params.iterations,
-            );
-            empty_neighbourhoods = out.empty_neighbourhoods;
-            out.passes
-        }
-    };
+    let counts = smoother.run(&mut mesh.positions);
     let elapsed = start.elapsed().as_secs_f64();
+    let graph = smoother.graph();
     let (mean, max) = displacement(&before, &mesh.positions);
     let diagonal = mesh.bounding_box_diagonal();
     let relative = |d: f64| if diagonal > 0.0 { d / diagonal } else { 0.0 };
-    let updates = graph.smoothed_vertices() as f64 * f64::from(passes);
+    let updates = graph.smoothed_vertices() as f64 * f64::from(counts.passes);
     tracing::debug!(
         method = params.method.name(),
         build_ms = built.as_secs_f64() * 1e3,
@@ -540,11 +587,11 @@ pub fn smooth(mesh: &mut Mesh, params: &SmoothParams) -> SmoothReport {
     SmoothReport {
         method: params.method.name(),
         iterations: params.iterations,
-        passes,
+        passes: counts.passes,
         smoothed_vertices: graph.smoothed_vertices(),
         fixed_boundary_vertices: graph.fixed_boundary_vertices(),
         isolated_vertices: graph.isolated_vertices(),
-        empty_neighbourhoods,
+        empty_neighbourhoods: counts.empty_neighbourhoods,
         mean_displacement: mean,
         max_displacement: max,
         mean_displacement_relative: relative(mean),
