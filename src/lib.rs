@@ -2,5 +2,6 @@
 
 pub mod mesh;
 pub mod ops;
+pub mod process;
 pub mod recipe;
 pub mod report;

@@ -1,3 +1,213 @@
-fn main() {
-    eprintln!("scanmill: command line arrives with the I/O merge");
+//! The command line. No logic beyond argument handling, progress display and exit codes.
+
+use clap::{Parser, Subcommand};
+use scanmill::mesh::summary::MeshSummary;
+use scanmill::mesh::{LoadOptions, MeshError, io};
+use scanmill::process::{ProcessError, process_scan};
+use scanmill::recipe::runner::Progress;
+use scanmill::recipe::{Recipe, RecipeError};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+/// Exit codes (sysexits.h), so that scripts and systemd can tell causes apart.
+mod exit {
+    pub const FAILURE: u8 = 1;
+    pub const DATA_ERROR: u8 = 65;
+    pub const NO_INPUT: u8 = 66;
+    pub const IO_ERROR: u8 = 74;
+    pub const CONFIG_ERROR: u8 = 78;
+}
+
+#[derive(Parser)]
+#[command(
+    name = "scanmill",
+    version,
+    about = "Unattended processing of 3D scans"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run one recipe on one scan, in the foreground.
+    Process {
+        /// The scan: .obj (with its MTL and textures) or .ply, optionally .gz.
+        input: PathBuf,
+        /// The recipe file (TOML).
+        #[arg(long)]
+        recipe: PathBuf,
+        /// Folder for the result (created if missing). Files of the same name are replaced.
+        #[arg(long)]
+        out: PathBuf,
+        /// Also write the processing report as JSON to this file.
+        #[arg(long)]
+        report: Option<PathBuf>,
+    },
+    /// Load a scan and print what it is.
+    Inspect {
+        file: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Weld vertices closer than this fraction of the bounding-box diagonal (0 = bit-exact).
+        #[arg(long, default_value_t = 0.0)]
+        weld_tolerance: f64,
+    },
+}
+
+/// A progress bar on stderr when it is a terminal; nothing otherwise.
+struct TerminalProgress {
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl TerminalProgress {
+    fn new() -> Self {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let bar = indicatif::ProgressBar::new(1);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {msg}",
+                )
+                .expect("valid template"),
+            );
+            bar.enable_steady_tick(std::time::Duration::from_millis(120));
+            bar
+        });
+        TerminalProgress { bar }
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        }
+    }
+}
+
+impl Progress for TerminalProgress {
+    fn stage(&self, index: usize, total: usize, name: &str) {
+        if let Some(bar) = &self.bar {
+            bar.set_length(total as u64);
+            bar.set_position(index as u64);
+            bar.set_message(name.to_string());
+        }
+    }
+}
+
+fn init_logging(default_level: &str) {
+    let filter = tracing_subscriber::EnvFilter::try_from_env("SCANMILL_LOG")
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default_level));
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .init();
+}
+
+fn mesh_error_code(e: &MeshError) -> u8 {
+    match e {
+        MeshError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            exit::NO_INPUT
+        }
+        MeshError::Io { .. } => exit::IO_ERROR,
+        _ => exit::DATA_ERROR,
+    }
+}
+
+fn run_process(
+    input: &Path,
+    recipe_path: &Path,
+    out: &Path,
+    report: Option<&Path>,
+) -> Result<(), (u8, anyhow::Error)> {
+    let recipe = Recipe::from_path(recipe_path).map_err(|e| {
+        let code = match &e {
+            RecipeError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+                exit::NO_INPUT
+            }
+            _ => exit::CONFIG_ERROR,
+        };
+        (code, e.into())
+    })?;
+    let progress = TerminalProgress::new();
+    let result = process_scan(input, &recipe, Some(recipe_path), out, &progress);
+    progress.finish();
+    let result = result.map_err(|e| {
+        let code = match &e {
+            ProcessError::Input(m) => mesh_error_code(m),
+            ProcessError::Step { .. } => exit::FAILURE,
+            ProcessError::Output { .. } => exit::IO_ERROR,
+        };
+        (code, e.into())
+    })?;
+    if let Some(path) = report {
+        let json = serde_json::to_string_pretty(&result).expect("report serialises");
+        std::fs::write(path, json + "\n").map_err(|e| {
+            (
+                exit::IO_ERROR,
+                anyhow::anyhow!("{}: cannot write report: {e}", path.display()),
+            )
+        })?;
+    }
+    let main_file = result
+        .output
+        .files
+        .last()
+        .map(|f| f.path.display().to_string())
+        .unwrap_or_default();
+    eprintln!(
+        "{} → {} ({} → {} faces, {:.0} ms)",
+        input.display(),
+        main_file,
+        result.input.counts.faces,
+        result.output.counts.faces,
+        result.total_ms
+    );
+    Ok(())
+}
+
+fn run_inspect(file: &Path, json: bool, weld_tolerance: f64) -> Result<(), (u8, anyhow::Error)> {
+    let options = LoadOptions {
+        weld_tolerance,
+        ..LoadOptions::default()
+    };
+    let (mesh, report) = io::load(file, &options).map_err(|e| (mesh_error_code(&e), e.into()))?;
+    let summary = MeshSummary::new(&mesh, Some(&report));
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&summary).expect("summary serialises")
+        );
+    } else {
+        println!("{}\n{summary}", file.display());
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging("warn");
+    let result = match &cli.command {
+        Command::Process {
+            input,
+            recipe,
+            out,
+            report,
+        } => run_process(input, recipe, out, report.as_deref()),
+        Command::Inspect {
+            file,
+            json,
+            weld_tolerance,
+        } => run_inspect(file, *json, *weld_tolerance),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err((code, error)) => {
+            // One line. scanmill's errors already carry their cause in their message.
+            eprintln!("scanmill: error: {error}");
+            ExitCode::from(code)
+        }
+    }
 }

@@ -29,13 +29,18 @@ pub struct Corner {
 }
 
 /// Options that govern loading.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LoadOptions {
     /// Weld vertices closer than this fraction of the bounding-box diagonal.
     /// 0 (the default) welds only bit-identical positions.
     pub weld_tolerance: f64,
     /// Decode every texture image to check it and learn its size.
     pub check_textures: bool,
+    /// A texture image to use when the file names none (an OBJ without `mtllib`/`usemtl`
+    /// exported beside its image, e.g. `example.obj` + `example.png`). Readers that find no
+    /// materials create one material, `scanmill_texture`, with this diffuse texture; when the
+    /// file does declare materials the override is ignored (with a warning).
+    pub texture_override: Option<PathBuf>,
 }
 
 impl Default for LoadOptions {
@@ -43,6 +48,7 @@ impl Default for LoadOptions {
         LoadOptions {
             weld_tolerance: 0.0,
             check_textures: true,
+            texture_override: None,
         }
     }
 }

@@ -3,14 +3,19 @@
 pub mod build;
 pub mod compact;
 pub mod error;
+pub mod io;
 pub mod model;
+pub mod mtl;
+pub mod obj;
 pub mod ply;
 pub mod shapes;
 pub mod summary;
+pub mod texture;
 pub mod topology;
 
 pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};
+pub use io::{SaveOptions, load, save};
 pub use model::{Index, Material, Mesh, Texture, Wedge};
 pub use summary::MeshSummary;
 pub use topology::{BoundaryChain, EdgeKind, OrderedRing, Topology, TopologyCounts};

@@ -38,6 +38,10 @@ pub struct Material {
     pub diffuse_texture: Option<Texture>,
     /// Every other statement of the `newmtl` block, verbatim (e.g. `Kd 1 1 1`, `map_Bump n.png`).
     pub other_statements: Vec<String>,
+    /// The folder of the MTL the material was read from: relative file names in
+    /// `other_statements` (`map_Bump`, `bump`, ...) resolve against it when a writer copies
+    /// them. `None` for materials a reader made up.
+    pub source_dir: Option<PathBuf>,
 }
 
 /// The mesh. Positions, texture coordinates and normals are separate arrays, as in an OBJ;

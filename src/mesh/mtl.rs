@@ -1,0 +1,172 @@
+//! MTL material libraries: `newmtl` blocks, their `map_Kd` texture, and every other
+//! statement kept verbatim so that it is written back unchanged.
+
+use super::error::{Location, MeshError, Result};
+use super::model::{Material, Texture};
+use super::texture::{self, is_map_statement, split_map_arguments};
+use std::path::Path;
+
+/// A material as the MTL states it, before its files are resolved.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MtlMaterial {
+    pub name: String,
+    /// The `map_Kd` file name (options stripped) and the line it is on.
+    pub diffuse: Option<(String, u64)>,
+    /// Every other statement, trimmed, in order; comments and blank lines are dropped.
+    pub other_statements: Vec<String>,
+    /// Line of `newmtl`.
+    pub line: u64,
+}
+
+/// Parses MTL text. Statements before the first `newmtl` are ignored (with a warning);
+/// a `newmtl` without a name is malformed.
+pub fn parse(mtl_path: &Path, bytes: &[u8]) -> Result<Vec<MtlMaterial>> {
+    let text = String::from_utf8_lossy(bytes);
+    let mut materials: Vec<MtlMaterial> = Vec::new();
+    let mut pending = String::new();
+    let mut pending_line = 0;
+    for (i, raw) in text.split('\n').enumerate() {
+        let line_no = i as u64 + 1;
+        let raw = raw.trim_end();
+        // `\` at the end of a line continues the statement on the next one.
+        if pending.is_empty() {
+            pending_line = line_no;
+        }
+        if let Some(head) = raw.strip_suffix('\\') {
+            pending.push_str(head);
+            pending.push(' ');
+            continue;
+        }
+        pending.push_str(raw);
+        let statement = std::mem::take(&mut pending);
+        let statement = statement.trim();
+        if statement.is_empty() || statement.starts_with('#') {
+            continue;
+        }
+        let (keyword, args) = match statement.find(char::is_whitespace) {
+            Some(k) => (&statement[..k], statement[k..].trim()),
+            None => (statement, ""),
+        };
+        if keyword == "newmtl" {
+            if args.is_empty() {
+                return Err(MeshError::malformed(
+                    mtl_path,
+                    Location::Line(pending_line),
+                    "newmtl without a material name",
+                ));
+            }
+            materials.push(MtlMaterial {
+                name: args.to_string(),
+                line: pending_line,
+                ..Default::default()
+            });
+            continue;
+        }
+        let Some(current) = materials.last_mut() else {
+            tracing::warn!(
+                "{}: line {pending_line}: `{keyword}` before any newmtl, ignored",
+                mtl_path.display()
+            );
+            continue;
+        };
+        if keyword.eq_ignore_ascii_case("map_Kd") {
+            let (options, file) = split_map_arguments(args);
+            if file.is_empty() {
+                return Err(MeshError::malformed(
+                    mtl_path,
+                    Location::Line(pending_line),
+                    "map_Kd without a file name",
+                ));
+            }
+            if !options.is_empty() {
+                // The model keeps only the file; options such as `-s` are rare in scans.
+                tracing::warn!(
+                    "{}: line {pending_line}: map_Kd options {options:?} are not kept",
+                    mtl_path.display()
+                );
+            }
+            if current.diffuse.is_some() {
+                tracing::warn!(
+                    "{}: line {pending_line}: second map_Kd in material {:?}; the last one wins",
+                    mtl_path.display(),
+                    current.name
+                );
+            }
+            current.diffuse = Some((file.to_string(), pending_line));
+        } else {
+            current.other_statements.push(statement.to_string());
+        }
+    }
+    Ok(materials)
+}
+
+/// Reads an MTL file, resolves its texture files inside the scan folder (`scan_dir`,
+/// canonical) and returns its materials in MTL order. Image checks are left to the caller
+/// (they run in parallel over all textures).
+pub fn load(mtl_path: &Path, scan_dir: &Path) -> Result<Vec<Material>> {
+    let bytes = std::fs::read(mtl_path).map_err(|e| MeshError::io(mtl_path, e))?;
+    let base_dir = texture::folder_of(mtl_path);
+    let mut out = Vec::new();
+    for m in parse(mtl_path, &bytes)? {
+        let diffuse_texture = match &m.diffuse {
+            Some((name, _line)) => {
+                let resolved = texture::resolve_in_scan(scan_dir, &base_dir, name, mtl_path)?;
+                Some(Texture {
+                    name: name.clone(),
+                    path: resolved.path,
+                    size: None,
+                })
+            }
+            None => None,
+        };
+        // Other maps are copied on output, so they must exist and stay inside too.
+        for statement in &m.other_statements {
+            let (keyword, args) = match statement.find(char::is_whitespace) {
+                Some(k) => (&statement[..k], statement[k..].trim()),
+                None => (statement.as_str(), ""),
+            };
+            if is_map_statement(keyword) {
+                let (_, file) = split_map_arguments(args);
+                if !file.is_empty() {
+                    texture::resolve_in_scan(scan_dir, &base_dir, file, mtl_path)?;
+                }
+            }
+        }
+        out.push(Material {
+            name: m.name,
+            diffuse_texture,
+            other_statements: m.other_statements,
+            source_dir: Some(base_dir.clone()),
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_blocks_statements_and_textures() {
+        let text = b"# comment\r\nnewmtl a\r\nKa 1 1 1\r\nmap_Kd -s 1 1 1 my tex.png\r\n\r\nnewmtl b\nmap_Bump n.png\nillum \\\n 2\n";
+        let m = parse(Path::new("x.mtl"), text).unwrap();
+        assert_eq!(m.len(), 2);
+        assert_eq!(m[0].name, "a");
+        assert_eq!(m[0].other_statements, vec!["Ka 1 1 1"]);
+        assert_eq!(m[0].diffuse, Some(("my tex.png".to_string(), 4)));
+        assert_eq!(m[1].other_statements, vec!["map_Bump n.png", "illum   2"]);
+        assert_eq!(m[1].diffuse, None);
+    }
+
+    #[test]
+    fn newmtl_without_name_is_malformed() {
+        let err = parse(Path::new("x.mtl"), b"newmtl a\nnewmtl\n").unwrap_err();
+        assert!(matches!(
+            err,
+            MeshError::Malformed {
+                at: Location::Line(2),
+                ..
+            }
+        ));
+    }
+}

@@ -1,0 +1,216 @@
+//! One scan through one recipe: load, run the steps, write the result into an output
+//! folder without ever leaving a half-written file there, and build the report.
+//! `scanmill process` and the daemon's worker both call [`process_scan`].
+
+use crate::mesh::ply::PlyEncoding;
+use crate::mesh::{LoadOptions, Mesh, MeshError, SaveOptions, load, save};
+use crate::recipe::runner::{Progress, StepError, run_steps};
+use crate::recipe::{OutputFormat, PlyEncodingSpec, Recipe};
+use crate::report::{
+    FileHash, InputReport, MeshCounts, OutputReport, RecipeReport, Report, combined_hash,
+};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ProcessError {
+    /// The input could not be read or is not a valid mesh.
+    #[error(transparent)]
+    Input(#[from] MeshError),
+    /// A step failed.
+    #[error("{input}: {source}")]
+    Step {
+        input: PathBuf,
+        #[source]
+        source: StepError,
+    },
+    /// Writing the result failed.
+    #[error("{path}: cannot write output: {message}")]
+    Output { path: PathBuf, message: String },
+}
+
+impl ProcessError {
+    /// Whether trying again could help (I/O trouble), as opposed to bad input or a step
+    /// that will fail the same way every time.
+    pub fn is_transient(&self) -> bool {
+        match self {
+            ProcessError::Input(MeshError::Io { .. }) | ProcessError::Output { .. } => true,
+            ProcessError::Input(_) | ProcessError::Step { .. } => false,
+        }
+    }
+}
+
+/// The output file's base name: the input's name without `.gz` and its mesh extension.
+pub fn output_stem(input: &Path) -> String {
+    let name = input
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scan".into());
+    let name = name.strip_suffix(".gz").unwrap_or(&name);
+    match name.rsplit_once('.') {
+        Some((stem, _)) if !stem.is_empty() => stem.to_string(),
+        _ => name.to_string(),
+    }
+}
+
+fn output_error(path: &Path, e: impl std::fmt::Display) -> ProcessError {
+    ProcessError::Output {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Writes `mesh` into `dir` in the recipe's format; returns the files written, the main
+/// mesh file last (so that publishing moves it last).
+pub fn write_mesh(
+    mesh: &Mesh,
+    recipe: &Recipe,
+    dir: &Path,
+    stem: &str,
+) -> Result<Vec<PathBuf>, ProcessError> {
+    let (extension, ply_encoding) = match recipe.output.format {
+        OutputFormat::Obj => ("obj", PlyEncoding::default()),
+        OutputFormat::Ply => (
+            "ply",
+            match recipe.output.ply_encoding {
+                PlyEncodingSpec::Ascii => PlyEncoding::Ascii,
+                PlyEncodingSpec::BinaryLittleEndian => PlyEncoding::BinaryLittleEndian,
+                PlyEncodingSpec::BinaryBigEndian => PlyEncoding::BinaryBigEndian,
+            },
+        ),
+    };
+    let main_file = dir.join(format!("{stem}.{extension}"));
+    let mut written = save(mesh, &main_file, &SaveOptions { ply_encoding })?;
+    written.retain(|f| *f != main_file);
+    written.push(main_file);
+    Ok(written)
+}
+
+/// Moves every file of `staging` into `out_dir` by rename (same filesystem), supporting
+/// files first and the main mesh file (last in `files`) last, then syncs the folder, so a
+/// reader never sees a mesh whose MTL or textures are not there yet.
+fn publish(
+    staging: &Path,
+    files: &[PathBuf],
+    out_dir: &Path,
+) -> Result<Vec<PathBuf>, ProcessError> {
+    let mut published = Vec::with_capacity(files.len());
+    for file in files {
+        let relative = file
+            .strip_prefix(staging)
+            .map_err(|e| output_error(file, e))?;
+        let target = out_dir.join(relative);
+        if let Some(parent) = target.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| output_error(parent, e))?;
+        }
+        std::fs::File::open(file)
+            .and_then(|f| f.sync_all())
+            .map_err(|e| output_error(file, e))?;
+        if target.exists() {
+            tracing::warn!(path = %target.display(), "replacing existing output file");
+        }
+        std::fs::rename(file, &target).map_err(|e| output_error(&target, e))?;
+        published.push(target);
+    }
+    std::fs::File::open(out_dir)
+        .and_then(|d| d.sync_all())
+        .map_err(|e| output_error(out_dir, e))?;
+    Ok(published)
+}
+
+/// A staging folder inside the output folder (so that the final rename is atomic), removed
+/// again when dropped, whatever happened.
+struct Staging(PathBuf);
+
+impl Staging {
+    fn new(out_dir: &Path) -> Result<Staging, ProcessError> {
+        std::fs::create_dir_all(out_dir).map_err(|e| output_error(out_dir, e))?;
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        let dir = out_dir.join(format!(".scanmill-tmp-{}-{nanos}", std::process::id()));
+        std::fs::create_dir(&dir).map_err(|e| output_error(&dir, e))?;
+        Ok(Staging(dir))
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Processes one scan. The result lands in `out_dir` only if everything succeeded.
+pub fn process_scan(
+    input: &Path,
+    recipe: &Recipe,
+    recipe_path: Option<&Path>,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<Report, ProcessError> {
+    let total_start = Instant::now();
+    let total_stages = recipe.steps.len() + 2;
+
+    progress.stage(0, total_stages, "load");
+    let load_start = Instant::now();
+    let options = LoadOptions {
+        weld_tolerance: recipe.input.weld_tolerance,
+        ..LoadOptions::default()
+    };
+    let (mut mesh, load_report) = load(input, &options)?;
+    let mut input_files = vec![FileHash::of(input).map_err(|e| MeshError::io(input, e))?];
+    for material in &mesh.materials {
+        if let Some(texture) = &material.diffuse_texture {
+            input_files
+                .push(FileHash::of(&texture.path).map_err(|e| MeshError::io(&texture.path, e))?);
+        }
+    }
+    let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
+    let input_counts = MeshCounts::of(&mesh);
+    tracing::info!(input = %input.display(), faces = input_counts.faces, load_ms, "loaded");
+
+    let steps = run_steps(recipe, &mut mesh, progress, 1, total_stages).map_err(|source| {
+        ProcessError::Step {
+            input: input.to_path_buf(),
+            source,
+        }
+    })?;
+
+    progress.stage(total_stages - 1, total_stages, "write");
+    let write_start = Instant::now();
+    let staging = Staging::new(out_dir)?;
+    let written = write_mesh(&mesh, recipe, &staging.0, &output_stem(input))?;
+    let published = publish(&staging.0, &written, out_dir)?;
+    drop(staging);
+    let output_files = published
+        .iter()
+        .map(|p| FileHash::of(p).map_err(|e| output_error(p, e)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
+
+    Ok(Report {
+        scanmill_version: env!("CARGO_PKG_VERSION").to_string(),
+        input: InputReport {
+            path: input.to_path_buf(),
+            content_hash: combined_hash(&input_files),
+            files: input_files,
+            counts: input_counts,
+            load: load_report,
+        },
+        recipe: RecipeReport {
+            path: recipe_path.map(Path::to_path_buf),
+            hash: recipe.hash(),
+            resolved: recipe.resolved_json(),
+        },
+        steps,
+        metrics: serde_json::Value::Null,
+        output: OutputReport {
+            files: output_files,
+            counts: MeshCounts::of(&mesh),
+        },
+        load_ms,
+        write_ms,
+        total_ms: total_start.elapsed().as_secs_f64() * 1e3,
+    })
+}
