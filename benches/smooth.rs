@@ -47,7 +47,11 @@ fn bench(c: &mut Criterion) {
     });
     let cases = [
         ("laplace", MethodName::Laplace, None),
-        ("laplace cotangent", MethodName::Laplace, Some(Weights::Cotangent)),
+        (
+            "laplace cotangent",
+            MethodName::Laplace,
+            Some(Weights::Cotangent),
+        ),
         ("hc", MethodName::Hc, None),
         ("taubin (λ+μ pair)", MethodName::Taubin, None),
         ("bilateral", MethodName::Bilateral, None),

@@ -19,10 +19,13 @@ pub struct SmoothGraph {
     inv_degree: Vec<f64>,
     /// Row owner of every entry (cotangent weights are computed per entry in parallel).
     entry_owner: Vec<u32>,
-    /// Per entry (CSR over entries): the vertices opposite the edge in its triangles. Empty
-    /// for entries whose weight stays 1 (free border rows, which average along the border).
+    /// Per entry (CSR over entries): the corners (`3t + k`) opposite the edge in its
+    /// triangles. Empty for entries whose weight stays 1 (free border rows, which average
+    /// along the border).
     opposite_offsets: Vec<u32>,
     opposite: Vec<u32>,
+    /// Vertex of every corner (cotangent weights only).
+    corner_vertices: Vec<u32>,
     smoothed: usize,
     fixed_boundary: usize,
     isolated: usize,
@@ -49,7 +52,9 @@ impl SmoothGraph {
                 fixed_boundary += 1;
             } else if on_border {
                 for &u in ring {
-                    let e = topology.find_edge(v, u).expect("a ring neighbour shares an edge");
+                    let e = topology
+                        .find_edge(v, u)
+                        .expect("a ring neighbour shares an edge");
                     if topology.is_boundary_edge(e) {
                         neighbours.push(u);
                     }
@@ -60,13 +65,13 @@ impl SmoothGraph {
             if cotangent {
                 for &u in &neighbours[start..] {
                     if !on_border {
-                        let e = topology.find_edge(v, u).expect("a ring neighbour shares an edge");
+                        let e = topology
+                            .find_edge(v, u)
+                            .expect("a ring neighbour shares an edge");
                         for t in topology.edge_triangles(e) {
-                            let third = topology
-                                .triangle_vertices(t)
-                                .into_iter()
-                                .find(|&w| w != v && w != u);
-                            opposite.extend(third);
+                            let corners = topology.triangle_vertices(t);
+                            let third = (0..3).find(|&k| corners[k] != v && corners[k] != u);
+                            opposite.extend(third.map(|k| 3 * t + k as u32));
                         }
                     }
                     opposite_offsets.push(opposite.len() as u32);
@@ -77,11 +82,16 @@ impl SmoothGraph {
             inv_degree.push(if degree > 0 { 1.0 / degree as f64 } else { 0.0 });
             offsets.push(neighbours.len() as u32);
         }
+        let corner_vertices = if cotangent {
+            (0..topology.triangle_count() as u32)
+                .flat_map(|t| topology.triangle_vertices(t))
+                .collect()
+        } else {
+            Vec::new()
+        };
         let entry_owner = if cotangent {
             (0..n)
-                .flat_map(|v| {
-                    std::iter::repeat_n(v as u32, (offsets[v + 1] - offsets[v]) as usize)
-                })
+                .flat_map(|v| std::iter::repeat_n(v as u32, (offsets[v + 1] - offsets[v]) as usize))
                 .collect()
         } else {
             Vec::new()
@@ -93,6 +103,7 @@ impl SmoothGraph {
             entry_owner,
             opposite_offsets,
             opposite,
+            corner_vertices,
             smoothed,
             fixed_boundary,
             isolated,
@@ -172,9 +183,28 @@ impl SmoothGraph {
     /// Recomputes cotangent weights from the current positions: for entry (i, j),
     /// w = ½ Σ cot(angle opposite the edge ij), clamped at 0 (an obtuse pair would give a
     /// negative weight and break the convex-combination property the filters rely on).
-    /// Entries without opposite vertices (free border rows) keep weight 1.
+    /// Entries without opposite corners (free border rows) keep weight 1. The cotangents
+    /// are computed once per triangle corner (one cross product per triangle), then summed
+    /// per entry.
     pub fn refresh_weights(&self, weights: &mut Option<Vec<f64>>, x: &[DVec3]) {
         let Some(w) = weights else { return };
+        let mut cot = vec![0.0; self.corner_vertices.len()];
+        cot.par_chunks_mut(3 * CHUNK)
+            .zip(self.corner_vertices.par_chunks(3 * CHUNK))
+            .for_each(|(cot, corners)| {
+                for (c, v) in cot.chunks_exact_mut(3).zip(corners.chunks_exact(3)) {
+                    let p = [x[v[0] as usize], x[v[1] as usize], x[v[2] as usize]];
+                    // Twice the area; the same for all three corners.
+                    let sin = (p[1] - p[0]).cross(p[2] - p[0]).length();
+                    if !(sin > 0.0) {
+                        continue;
+                    }
+                    for k in 0..3 {
+                        let (a, b) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
+                        c[k] = a.dot(b) / sin;
+                    }
+                }
+            });
         w.par_chunks_mut(CHUNK)
             .enumerate()
             .for_each(|(chunk, out)| {
@@ -182,25 +212,12 @@ impl SmoothGraph {
                     let e = chunk * CHUNK + k;
                     let opp = &self.opposite
                         [self.opposite_offsets[e] as usize..self.opposite_offsets[e + 1] as usize];
-                    if opp.is_empty() {
-                        *slot = 1.0;
-                        continue;
-                    }
-                    let (pi, pj) = (
-                        x[self.entry_owner[e] as usize],
-                        x[self.neighbours[e] as usize],
-                    );
-                    let mut cot_sum = 0.0;
-                    for &o in opp {
-                        let po = x[o as usize];
-                        let (a, b) = (pi - po, pj - po);
-                        let sin = a.cross(b).length();
-                        if sin > 0.0 {
-                            cot_sum += a.dot(b) / sin;
-                        }
-                    }
-                    let wij = 0.5 * cot_sum;
-                    *slot = if wij.is_finite() { wij.max(0.0) } else { 0.0 };
+                    *slot = if opp.is_empty() {
+                        1.0
+                    } else {
+                        let wij = 0.5 * opp.iter().map(|&c| cot[c as usize]).sum::<f64>();
+                        if wij.is_finite() { wij.max(0.0) } else { 0.0 }
+                    };
                 }
             });
     }

@@ -156,6 +156,9 @@ pub struct BilateralParams {
     pub sigma_s: f64,
     /// Neighbourhood radius ρ; `None` = 2 σ_c as in Fleishman et al.
     pub radius: Option<f64>,
+    /// Order of the mesh neighbourhood (thesis §2.4.2) the ρ-ball is taken from; see
+    /// the bilateral module for why 3.
+    pub rings: u32,
     pub units: LengthUnits,
 }
 
@@ -227,6 +230,8 @@ pub struct SmoothParamsFile {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
+    pub rings: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub units: Option<LengthUnits>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub weights: Option<Weights>,
@@ -239,6 +244,9 @@ pub struct SmoothParamsFile {
 /// Upper bound on `iterations`: far beyond any useful smoothing, low enough that a typo
 /// cannot keep the daemon busy for days.
 pub const MAX_ITERATIONS: u32 = 10_000;
+
+/// Upper bound on the bilateral neighbourhood order.
+pub const MAX_RINGS: u32 = 4;
 
 impl SmoothParamsFile {
     /// Names of the parameters that are set.
@@ -256,6 +264,7 @@ impl SmoothParamsFile {
         push(self.sigma_c.is_some(), "sigma_c");
         push(self.sigma_s.is_some(), "sigma_s");
         push(self.radius.is_some(), "radius");
+        push(self.rings.is_some(), "rings");
         push(self.units.is_some(), "units");
         push(self.weights.is_some(), "weights");
         push(self.anchor.is_some(), "anchor");
@@ -269,7 +278,7 @@ fn own_parameters(method: MethodName) -> &'static [&'static str] {
         MethodName::Laplace => &["lambda", "anchor", "weights"],
         MethodName::Hc => &["lambda", "alpha", "beta", "weights"],
         MethodName::Taubin => &["lambda", "mu", "count", "weights"],
-        MethodName::Bilateral => &["sigma_c", "sigma_s", "radius", "units"],
+        MethodName::Bilateral => &["sigma_c", "sigma_s", "radius", "rings", "units"],
     }
 }
 
@@ -366,8 +375,13 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
                     sigma_c: f.sigma_c.unwrap_or(c),
                     sigma_s: f.sigma_s.unwrap_or(s),
                     radius: f.radius,
+                    rings: f.rings.unwrap_or(3),
                     units,
                 };
+                // Memory grows with the square of the order (≈ 3k(k+1) vertices each).
+                check((1..=MAX_RINGS).contains(&p.rings), || {
+                    format!("`rings` must be in 1..={MAX_RINGS}, got {}", p.rings)
+                })?;
                 positive("sigma_c", p.sigma_c)?;
                 positive("sigma_s", p.sigma_s)?;
                 if let Some(r) = p.radius {
@@ -438,6 +452,7 @@ impl From<SmoothParams> for SmoothParamsFile {
                 f.sigma_c = Some(b.sigma_c);
                 f.sigma_s = Some(b.sigma_s);
                 f.radius = b.radius;
+                f.rings = Some(b.rings);
                 f.units = Some(b.units);
             }
         }
@@ -499,6 +514,8 @@ pub(crate) const CHUNK: usize = 4096;
 pub struct Smoother {
     topology: Topology,
     graph: SmoothGraph,
+    /// The bilateral filter's candidate neighbourhoods (empty for the other methods).
+    rings: bilateral::Rings,
     params: SmoothParams,
     /// Model units per parameter unit for the bilateral lengths.
     length_unit: f64,
@@ -515,6 +532,10 @@ impl Smoother {
     pub fn new(mesh: &Mesh, params: &SmoothParams) -> Smoother {
         let topology = mesh.topology();
         let graph = SmoothGraph::new(&topology, params.boundary, uses_cotangent(params));
+        let rings = match params.method {
+            SmoothMethod::Bilateral(p) => bilateral::Rings::new(&topology, p.rings),
+            _ => bilateral::Rings::default(),
+        };
         let length_unit = match params.method {
             SmoothMethod::Bilateral(BilateralParams {
                 units: LengthUnits::MeanEdge,
@@ -525,6 +546,7 @@ impl Smoother {
         Smoother {
             topology,
             graph,
+            rings,
             params: params.clone(),
             length_unit,
         }
@@ -536,7 +558,11 @@ impl Smoother {
 
     /// Runs all iterations on `positions` (those of the mesh given to [`Smoother::new`]).
     pub fn run(&self, positions: &mut Vec<DVec3>) -> PassCounts {
-        assert_eq!(positions.len(), self.graph.vertex_count(), "positions of another mesh");
+        assert_eq!(
+            positions.len(),
+            self.graph.vertex_count(),
+            "positions of another mesh"
+        );
         let (graph, iterations, update) = (&self.graph, self.params.iterations, self.params.update);
         let passes = match self.params.method {
             SmoothMethod::Laplace(p) => laplace::run(graph, positions, &p, iterations, update),
@@ -545,6 +571,7 @@ impl Smoother {
             SmoothMethod::Bilateral(p) => {
                 let out = bilateral::run(
                     &self.topology,
+                    &self.rings,
                     graph,
                     positions,
                     &p,

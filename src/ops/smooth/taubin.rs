@@ -29,7 +29,11 @@ pub(super) fn run(
         Update::InPlace => Vec::new(),
     };
     for pass in 0..passes {
-        let factor = if pass % 2 == 0 { params.lambda } else { params.mu };
+        let factor = if pass % 2 == 0 {
+            params.lambda
+        } else {
+            params.mu
+        };
         graph.refresh_weights(&mut weights, positions);
         match update {
             Update::Buffered => {

@@ -25,7 +25,9 @@ fn with(method: MethodName, f: impl FnOnce(&mut SmoothParamsFile)) -> SmoothPara
 
 /// Deterministic pseudo-random numbers in [-1, 1] (no RNG crate needed for unit tests).
 fn noise(seed: u64, count: usize) -> Vec<f64> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     (0..count)
         .map(|_| {
             s = s
@@ -226,10 +228,7 @@ fn laplace_eq_3_4_is_eq_3_3_with_lambda_one() {
     let expected: Vec<DVec3> = (0..m.positions.len() as u32)
         .map(|v| {
             let ring = topo.vertex_neighbours(v);
-            ring.iter()
-                .map(|&j| m.positions[j as usize])
-                .sum::<DVec3>()
-                * (1.0 / ring.len() as f64)
+            ring.iter().map(|&j| m.positions[j as usize]).sum::<DVec3>() * (1.0 / ring.len() as f64)
         })
         .collect();
     smooth(
@@ -262,7 +261,10 @@ fn anchored_laplace_stays_near_the_original() {
     let v0 = signed_volume(&original);
     let current = run(LaplaceAnchor::Current) / v0 - 1.0;
     let anchored = run(LaplaceAnchor::Original) / v0 - 1.0;
-    assert!(anchored.abs() < current.abs() / 3.0, "{anchored} vs {current}");
+    assert!(
+        anchored.abs() < current.abs() / 3.0,
+        "{anchored} vs {current}"
+    );
 }
 
 #[test]
