@@ -1,6 +1,7 @@
 //! scanmill: unattended processing of 3D scans. See DESIGN.md for the architecture.
 
 pub mod mesh;
+pub mod metrics;
 pub mod ops;
 pub mod process;
 pub mod recipe;
