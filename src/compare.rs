@@ -111,7 +111,13 @@ impl CompareRow {
     fn fill(&mut self, m: FinalMetrics) {
         let d = &m.distance;
         let diagonal = d.bbox_diagonal;
-        let percent = |x: f64| if diagonal > 0.0 { 100.0 * x / diagonal } else { 0.0 };
+        let percent = |x: f64| {
+            if diagonal > 0.0 {
+                100.0 * x / diagonal
+            } else {
+                0.0
+            }
+        };
         self.distance_mean = Some(d.mean);
         self.distance_rms = Some(d.rms);
         self.distance_max = Some(d.max);
@@ -368,7 +374,9 @@ mod tests {
         let recipes = [
             NamedRecipe {
                 name: "laplace".into(),
-                recipe: recipe("[[step]]\nkind = \"smooth\"\nmethod = \"laplace\"\nlambda = 1.0\niterations = 10\n"),
+                recipe: recipe(
+                    "[[step]]\nkind = \"smooth\"\nmethod = \"laplace\"\nlambda = 1.0\niterations = 10\n",
+                ),
             },
             NamedRecipe {
                 name: "taubin, pairs".into(),
@@ -402,7 +410,10 @@ mod tests {
         assert!(t.rows[2].vertex_offset_abs_mean.is_some());
 
         let text = t.to_text();
-        assert!(text.contains("taubin, pairs") && text.contains("volume_%"), "{text}");
+        assert!(
+            text.contains("taubin, pairs") && text.contains("volume_%"),
+            "{text}"
+        );
         let csv = t.to_csv();
         assert_eq!(csv.lines().count(), 4);
         assert!(csv.contains("\"taubin, pairs\""), "{csv}");

@@ -100,16 +100,6 @@ impl Rings {
     fn of(&self, i: usize) -> &[u32] {
         &self.list[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
-
-    /// Average neighbourhood size (for the report's figures and the docs).
-    pub fn mean_len(&self) -> f64 {
-        let n = self.offsets.len().saturating_sub(1);
-        if n == 0 {
-            0.0
-        } else {
-            self.list.len() as f64 / n as f64
-        }
-    }
 }
 
 /// e^x for x ≤ 0, to ~1e-8 relative: 2^(x·log₂e) split into an integer power k (set in the
