@@ -67,6 +67,10 @@ pub struct CompareRow {
     /// One-sided mean distance from the result's surface to the clean one, in percent of
     /// the diagonal: MeshLab's Hausdorff-filter figure.
     pub to_clean_mean_percent: Option<f64>,
+    /// The other direction: from the clean surface to the result's. On a rough (noisy)
+    /// surface it is the smaller of the two (the closest point finds the nearest bump);
+    /// once smoothed, both agree.
+    pub from_clean_mean_percent: Option<f64>,
     /// 100 · (V − V_clean) / V_clean; only when both meshes are closed.
     pub volume_change_percent: Option<f64>,
     /// The thesis' distance deviation (offset along the clean vertex normal), mean of
@@ -98,6 +102,7 @@ impl CompareRow {
             distance_rms_percent: None,
             distance_max_percent: None,
             to_clean_mean_percent: None,
+            from_clean_mean_percent: None,
             volume_change_percent: None,
             vertex_offset_abs_mean: None,
             vertex_offset_signed_mean: None,
@@ -125,6 +130,7 @@ impl CompareRow {
         self.distance_rms_percent = Some(percent(d.rms));
         self.distance_max_percent = Some(percent(d.max));
         self.to_clean_mean_percent = Some(percent(d.result_to_reference.mean));
+        self.from_clean_mean_percent = Some(percent(d.reference_to_result.mean));
         self.volume_change_percent = m.volume.change_percent;
         self.vertex_offset_abs_mean = m.vertex_deviation.map(|v| v.abs_mean);
         self.vertex_offset_signed_mean = m.vertex_deviation.map(|v| v.signed_mean);
@@ -239,6 +245,7 @@ const COLUMNS: &[(&str, Cell)] = &[
     ("dist_rms_%", |r| fixed(r.distance_rms_percent, 4)),
     ("dist_max_%", |r| fixed(r.distance_max_percent, 4)),
     ("to_clean_mean_%", |r| fixed(r.to_clean_mean_percent, 4)),
+    ("from_clean_mean_%", |r| fixed(r.from_clean_mean_percent, 4)),
     ("volume_%", |r| fixed(r.volume_change_percent, 3)),
     ("offset_abs_mean", |r| sci(r.vertex_offset_abs_mean)),
     ("offset_signed_mean", |r| sci(r.vertex_offset_signed_mean)),

@@ -33,6 +33,10 @@ use rayon::prelude::*;
 pub(super) struct BilateralOutcome {
     pub passes: u32,
     pub empty_neighbourhoods: u64,
+    /// Neighbours used (inside the ρ-ball), summed over all updates.
+    pub neighbours: u64,
+    /// How many of them came from the outermost ring searched.
+    pub outer_ring_neighbours: u64,
 }
 
 /// Each vertex's order-k neighbourhood without the vertex itself (CSR; rings in
@@ -41,6 +45,9 @@ pub(super) struct BilateralOutcome {
 pub struct Rings {
     offsets: Vec<u32>,
     list: Vec<u32>,
+    /// Per vertex, where its outermost ring starts in `list` (absolute index): a candidate
+    /// from there inside the ρ-ball means the ball may reach beyond the rings.
+    outer: Vec<u32>,
 }
 
 impl Rings {
@@ -48,13 +55,14 @@ impl Rings {
         let n = topology.vertex_count();
         let block = n.div_ceil(4 * rayon::current_num_threads()).max(1024);
         // Blocks of vertices in parallel, each with its own marks; concatenated in order.
-        let parts: Vec<(Vec<u32>, Vec<u32>)> = (0..n.div_ceil(block))
+        let parts: Vec<(Vec<u32>, Vec<u32>, Vec<u32>)> = (0..n.div_ceil(block))
             .into_par_iter()
             .map(|b| {
                 let (first, last) = (b * block, ((b + 1) * block).min(n));
                 // mark[j] == i + 1: j already listed for vertex i (zeroed pages are free).
                 let mut mark = vec![0u32; n];
                 let (mut counts, mut list) = (Vec::with_capacity(last - first), Vec::new());
+                let mut outer = Vec::with_capacity(last - first);
                 for i in first..last {
                     let stamp = i as u32 + 1;
                     mark[i] = stamp;
@@ -77,18 +85,21 @@ impl Rings {
                         ring_start = ring_end;
                     }
                     counts.push((list.len() - start) as u32);
+                    outer.push((ring_start - start) as u32);
                 }
-                (counts, list)
+                (counts, list, outer)
             })
             .collect();
         let mut rings = Rings {
             offsets: Vec::with_capacity(n + 1),
             list: Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum()),
+            outer: Vec::with_capacity(n),
         };
         rings.offsets.push(0);
-        for (counts, list) in parts {
-            for c in counts {
+        for (counts, list, outer) in parts {
+            for (c, o) in counts.into_iter().zip(outer) {
                 let last = *rings.offsets.last().expect("starts with 0");
+                rings.outer.push(last + o);
                 rings.offsets.push(last + c);
             }
             rings.list.extend(list);
@@ -99,6 +110,12 @@ impl Rings {
     #[inline]
     fn of(&self, i: usize) -> &[u32] {
         &self.list[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+
+    /// Position in [`Self::of`]`(i)` where the outermost ring starts.
+    #[inline]
+    fn outer_start(&self, i: usize) -> usize {
+        (self.outer[i] - self.offsets[i]) as usize
     }
 }
 
@@ -165,26 +182,39 @@ struct Kernel {
     inv_2ss2: f64,
 }
 
-/// Fleishman's DenoisePoint; `None` when the vertex cannot move.
+/// Fleishman's DenoisePoint: the new position (`None` when the vertex cannot move), the
+/// number of neighbours inside the ball, and how many of them are in the outermost ring
+/// searched (many there means the ball probably reaches beyond the rings).
 #[inline]
-fn denoise_vertex(x: &[DVec3], i: usize, n: DVec3, candidates: &[u32], k: Kernel) -> Option<DVec3> {
+fn denoise_vertex(
+    x: &[DVec3],
+    i: usize,
+    n: DVec3,
+    candidates: &[u32],
+    outer_start: usize,
+    k: Kernel,
+) -> (Option<DVec3>, u32, u32) {
     if n == DVec3::ZERO {
-        return None;
+        return (None, 0, 0);
     }
     let v = x[i];
     let (mut sum_wh, mut sum_w) = (0.0, 0.0);
-    for &j in candidates {
+    let (mut inside, mut outer) = (0u32, 0u32);
+    for (c, &j) in candidates.iter().enumerate() {
         let d = v - x[j as usize];
         let t2 = d.length_squared();
         if t2 >= k.radius_sq {
             continue;
         }
+        inside += 1;
+        outer += u32::from(c >= outer_start);
         let h = n.dot(d);
         let w = exp_neg(-t2 * k.inv_2sc2 - h * h * k.inv_2ss2);
         sum_wh += w * h;
         sum_w += w;
     }
-    (sum_w > 0.0 && sum_wh.is_finite()).then(|| v - n * (sum_wh / sum_w))
+    let moved = (sum_w > 0.0 && sum_wh.is_finite()).then(|| v - n * (sum_wh / sum_w));
+    (moved, inside, outer)
 }
 
 /// `unit` converts the parameters to model units (the mean edge length, or 1).
@@ -209,6 +239,8 @@ pub(super) fn run(
     let mut outcome = BilateralOutcome {
         passes: iterations,
         empty_neighbourhoods: 0,
+        neighbours: 0,
+        outer_ring_neighbours: 0,
     };
     if !(radius > 0.0 && kernel.inv_2sc2.is_finite() && kernel.inv_2ss2.is_finite()) {
         // A mesh whose edges all have length 0 has no scale to smooth at.
@@ -221,26 +253,32 @@ pub(super) fn run(
     for _ in 0..iterations {
         vertex_normals(topology, positions, &mut faces, &mut normals);
         let x = &*positions;
-        let empty: u64 = next
+        let (empty, inside, outer): (u64, u64, u64) = next
             .par_chunks_mut(CHUNK)
             .enumerate()
             .map(|(chunk, out)| {
-                let mut empty = 0u64;
+                let (mut empty, mut inside, mut outer) = (0u64, 0u64, 0u64);
                 for (k, p) in out.iter_mut().enumerate() {
                     let i = chunk * CHUNK + k;
                     *p = x[i];
                     if !graph.moves(i) {
                         continue;
                     }
-                    match denoise_vertex(x, i, normals[i], rings.of(i), kernel) {
+                    let (moved, used, from_outer) =
+                        denoise_vertex(x, i, normals[i], rings.of(i), rings.outer_start(i), kernel);
+                    inside += u64::from(used);
+                    outer += u64::from(from_outer);
+                    match moved {
                         Some(moved) => *p = moved,
                         None => empty += 1,
                     }
                 }
-                empty
+                (empty, inside, outer)
             })
-            .sum();
+            .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
         outcome.empty_neighbourhoods += empty;
+        outcome.neighbours += inside;
+        outcome.outer_ring_neighbours += outer;
         std::mem::swap(positions, &mut next);
     }
     outcome
@@ -280,6 +318,9 @@ mod tests {
         got.dedup();
         assert_eq!(got.len(), two.of(v).len(), "no duplicates");
         assert_eq!(got.len(), 18);
+        // The outer ring of the order-2 neighbourhood is the 12 vertices after the 6.
+        assert_eq!(two.outer_start(v), 6);
+        assert_eq!(one.outer_start(v), 0);
         assert_eq!(Rings::new(&topo, 2).list, two.list);
     }
 }
