@@ -243,11 +243,16 @@ impl Recipe {
 
     /// Parses recipe text; `path` is only used in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Recipe, RecipeError> {
+        let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
+        // One line: "line 5: unknown variant `sharpen`, expected one of …".
         let file: RecipeFile = toml::from_str(text).map_err(|e| RecipeError::Parse {
             path: path.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
+            message: match e.span() {
+                Some(span) => format!("line {}: {}", line_of(span.start), e.message().trim()),
+                None => e.message().trim().to_string(),
+            }
+            .replace('\n', " "),
         })?;
-        let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
         let parse_error = |line: usize, message: String| RecipeError::Parse {
             path: path.to_path_buf(),
             message: format!("line {line}: {}", message.trim_end()),
