@@ -5,4 +5,5 @@ pub mod decimate;
 pub mod fair;
 pub mod normals;
 pub mod seam_fix;
+pub mod smooth;
 pub mod subdivide;

@@ -10,6 +10,7 @@ use crate::ops::decimate::DecimateParams;
 use crate::ops::fair::{FairParams, RelaxParams};
 use crate::ops::normals::NormalsParams;
 use crate::ops::seam_fix::SeamFixParams;
+use crate::ops::smooth::SmoothParams;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -24,14 +25,6 @@ pub enum RecipeError {
     },
     #[error("{path}: {message}")]
     Parse { path: PathBuf, message: String },
-    #[error(
-        "{path}: line {line}: step kind `{kind}` is not implemented in this version of scanmill"
-    )]
-    NotImplemented {
-        path: PathBuf,
-        line: usize,
-        kind: &'static str,
-    },
     #[error("{path}: line {line}: step `{kind}`: {message}")]
     Invalid {
         path: PathBuf,
@@ -85,10 +78,6 @@ impl Default for InputSpec {
     }
 }
 
-/// Parameters of a step kind that this version does not implement yet. Parsed so that the
-/// error can name the step and its line rather than "unknown variant".
-pub type PendingParams = toml::Table;
-
 /// One processing step. The variant name is the recipe's `kind`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -96,7 +85,7 @@ pub enum Step {
     Crop(CropParams),
     Relax(RelaxParams),
     Fair(FairParams),
-    Smooth(PendingParams),
+    Smooth(SmoothParams),
     Decimate(DecimateParams),
     SeamFix(SeamFixParams),
     Normals(NormalsParams),
@@ -115,10 +104,6 @@ impl Step {
         }
     }
 
-    fn is_implemented(&self) -> bool {
-        !matches!(self, Step::Smooth(_))
-    }
-
     fn validate(&self) -> Result<(), String> {
         match self {
             Step::Normals(p) => p.validate(),
@@ -127,7 +112,7 @@ impl Step {
             Step::SeamFix(p) => p.validate(),
             Step::Relax(p) => p.validate(),
             Step::Fair(p) => p.validate(),
-            _ => Ok(()),
+            Step::Smooth(p) => p.validate(),
         }
     }
 }
@@ -288,13 +273,6 @@ impl Recipe {
                 let line = error_line(text, spanned_range.end, &message).unwrap_or(line);
                 parse_error(line, message)
             })?;
-            if !step.is_implemented() {
-                return Err(RecipeError::NotImplemented {
-                    path: path.to_path_buf(),
-                    line,
-                    kind: step.kind(),
-                });
-            }
             step.validate().map_err(|message| RecipeError::Invalid {
                 path: path.to_path_buf(),
                 line,
@@ -363,19 +341,6 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("stl") && e.contains("obj"), "{e}");
-    }
-
-    #[test]
-    fn pending_kind_is_a_clear_error() {
-        let e = parse("[[step]]\nkind = \"normals\"\n\n[[step]]\nkind = \"crop\"\nmargin = 1\n")
-            .unwrap_err();
-        match e {
-            RecipeError::NotImplemented { line, kind, .. } => {
-                assert_eq!(kind, "crop");
-                assert_eq!(line, 4);
-            }
-            other => panic!("unexpected {other}"),
-        }
     }
 
     #[test]

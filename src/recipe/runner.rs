@@ -52,10 +52,7 @@ fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_jso
         }
         Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
         Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
-        other => Err(format!(
-            "step kind `{}` is not implemented in this version",
-            other.kind()
-        )),
+        Step::Smooth(p) => Ok(figures(ops::smooth::smooth(mesh, p))),
     }
 }
 
