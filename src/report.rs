@@ -89,6 +89,10 @@ pub struct StepReport {
     pub faces_after: usize,
     /// The step's own figures (iterations, collapses, …), as the step reports them.
     pub figures: Value,
+    /// Metrics of the step's result against its input, for steps with `metrics = true`
+    /// (a `metrics::FinalMetrics`, or `{"error": …}`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metrics: Option<Value>,
 }
 
 #[derive(Debug, Clone, Serialize)]

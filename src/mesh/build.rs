@@ -14,8 +14,10 @@
 
 use super::error::{Location, MeshError, Result};
 use super::model::{Index, Material, Mesh, Wedge};
+use super::wedges::WedgeInterner;
 use glam::{DVec2, DVec3};
-use rustc_hash::{FxHashMap as HashMap, FxHashSet as HashSet};
+use rayon::prelude::*;
+use rustc_hash::FxHashMap as HashMap;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -79,6 +81,15 @@ pub struct LoadReport {
     pub skipped: Vec<String>,
 }
 
+/// What the repair rules decided for one face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FaceStatus {
+    Kept = 0,
+    Degenerate = 1,
+    ZeroArea = 2,
+    Duplicate = 3,
+}
+
 /// Raw arrays as a reader parsed them, before validation and repair.
 #[derive(Debug, Default)]
 pub struct MeshBuilder {
@@ -127,52 +138,30 @@ impl MeshBuilder {
         self.report.merged_texcoords = self.texcoords.len() - texcoords.len();
         self.report.merged_normals = self.normals.len() - normals.len();
 
-        let mut wedge_ids: HashMap<Wedge, Index> = HashMap::default();
-        let mut wedges: Vec<Wedge> = Vec::new();
-        let mut triangles: Vec<[Index; 3]> = Vec::with_capacity(self.faces.len());
-        let mut triangle_materials: Vec<Index> = Vec::new();
-        let mut seen_faces: HashSet<[Index; 3]> =
-            HashSet::with_capacity_and_hasher(self.faces.len(), Default::default());
-        let has_materials = !self.face_materials.is_empty();
+        let (kept, dropped) = self.classify_faces(&weld);
+        self.report.dropped_degenerate_faces = dropped[FaceStatus::Degenerate as usize];
+        self.report.dropped_zero_area_faces = dropped[FaceStatus::ZeroArea as usize];
+        self.report.dropped_duplicate_faces = dropped[FaceStatus::Duplicate as usize];
 
-        for (f, face) in self.faces.iter().enumerate() {
-            let v = face.map(|c| weld[c.vertex as usize]);
-            if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] {
-                self.report.dropped_degenerate_faces += 1;
-                continue;
-            }
-            if is_zero_area(
-                self.positions[v[0] as usize],
-                self.positions[v[1] as usize],
-                self.positions[v[2] as usize],
-            ) {
-                self.report.dropped_zero_area_faces += 1;
-                continue;
-            }
-            // A duplicate uses the same three vertices, in either orientation (as MeshLab's
-            // "Remove Duplicate Faces" and the counts in data/SOURCES.md define it): a reversed
-            // copy is a zero-volume double layer, not surface.
-            let mut key = v;
-            key.sort_unstable();
-            if !seen_faces.insert(key) {
-                self.report.dropped_duplicate_faces += 1;
-                continue;
-            }
+        // Wedges: one per distinct (vertex, texcoord, normal), numbered in order of first use.
+        let mut interner = WedgeInterner::new(self.positions.len());
+        let mut triangles: Vec<[Index; 3]> = Vec::with_capacity(kept.len());
+        let mut triangle_materials: Vec<Index> = Vec::new();
+        let has_materials = !self.face_materials.is_empty();
+        for &f in &kept {
+            let face = &self.faces[f as usize];
             let mut tri = [0; 3];
-            for k in 0..3 {
+            for (k, corner) in face.iter().enumerate() {
                 let wedge = Wedge {
-                    vertex: v[k],
-                    texcoord: face[k].texcoord.map(|t| texcoord_map[t as usize]),
-                    normal: face[k].normal.map(|n| normal_map[n as usize]),
+                    vertex: weld[corner.vertex as usize],
+                    texcoord: corner.texcoord.map(|t| texcoord_map[t as usize]),
+                    normal: corner.normal.map(|n| normal_map[n as usize]),
                 };
-                tri[k] = *wedge_ids.entry(wedge).or_insert_with(|| {
-                    wedges.push(wedge);
-                    (wedges.len() - 1) as Index
-                });
+                tri[k] = interner.intern(wedge);
             }
             triangles.push(tri);
             if has_materials {
-                triangle_materials.push(self.face_materials[f]);
+                triangle_materials.push(self.face_materials[f as usize]);
             }
         }
         if triangles.is_empty() {
@@ -208,7 +197,7 @@ impl MeshBuilder {
             texcoords,
             normals,
             colors: self.colors,
-            wedges,
+            wedges: interner.into_wedges(),
             triangles,
             triangle_materials,
             materials: self.materials,
@@ -218,6 +207,58 @@ impl MeshBuilder {
         self.report.dropped_unreferenced_vertices = removed.vertices - self.report.welded_vertices;
         debug_assert!(mesh.check_invariants().is_ok());
         Ok((mesh, self.report))
+    }
+
+    /// Applies the face repair rules in parallel. Returns the faces kept, in file order, and
+    /// how many were dropped for each reason (indexed by [`FaceStatus`]).
+    fn classify_faces(&self, weld: &[Index]) -> (Vec<Index>, [usize; 4]) {
+        let positions = &self.positions;
+        let mut status: Vec<FaceStatus> = self
+            .faces
+            .par_iter()
+            .map(|face| {
+                let v = face.map(|c| weld[c.vertex as usize]);
+                if v[0] == v[1] || v[1] == v[2] || v[0] == v[2] {
+                    FaceStatus::Degenerate
+                } else if is_zero_area(
+                    positions[v[0] as usize],
+                    positions[v[1] as usize],
+                    positions[v[2] as usize],
+                ) {
+                    FaceStatus::ZeroArea
+                } else {
+                    FaceStatus::Kept
+                }
+            })
+            .collect();
+        // A duplicate uses the same three vertices, in either orientation (as MeshLab's
+        // "Remove Duplicate Faces" and the counts in data/SOURCES.md define it): a reversed
+        // copy is a zero-volume double layer, not surface. The first occurrence is kept.
+        let mut keys: Vec<([Index; 3], Index)> = status
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| **s == FaceStatus::Kept)
+            .map(|(f, _)| {
+                let mut key = self.faces[f].map(|c| weld[c.vertex as usize]);
+                key.sort_unstable();
+                (key, f as Index)
+            })
+            .collect();
+        keys.par_sort_unstable();
+        for pair in keys.windows(2) {
+            if pair[0].0 == pair[1].0 {
+                status[pair[1].1 as usize] = FaceStatus::Duplicate;
+            }
+        }
+        let mut dropped = [0usize; 4];
+        let mut kept = Vec::with_capacity(self.faces.len());
+        for (f, s) in status.iter().enumerate() {
+            dropped[*s as usize] += 1;
+            if *s == FaceStatus::Kept {
+                kept.push(f as Index);
+            }
+        }
+        (kept, dropped)
     }
 
     fn check_indices(&self) -> Result<()> {

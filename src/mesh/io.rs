@@ -43,7 +43,12 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
     let raw = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
     let bytes = if gz { gunzip(path, &raw)? } else { raw };
     match format {
-        Format::Obj => obj::read(path, &bytes, options),
+        Format::Obj => {
+            // The text of a large OBJ is bigger than the mesh: free it before welding.
+            let builder = obj::parse(path, &bytes, options)?;
+            drop(bytes);
+            builder.finish(options)
+        }
         Format::Ply => ply::read(path, &bytes, options),
     }
 }

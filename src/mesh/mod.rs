@@ -12,6 +12,7 @@ pub mod shapes;
 pub mod summary;
 pub mod texture;
 pub mod topology;
+pub mod wedges;
 
 pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};

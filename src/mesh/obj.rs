@@ -197,6 +197,8 @@ struct Chunk<'a> {
 }
 
 fn parse_geometry(path: &Path, bytes: &[u8]) -> Result<Geometry> {
+    // Some Windows tools start text files with a UTF-8 byte-order mark.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let threads = rayon::current_num_threads();
     parse_geometry_in(
         path,
@@ -1297,6 +1299,17 @@ mod tests {
                 corner(2, None, None)
             ]
         );
+    }
+
+    #[test]
+    fn byte_order_mark_is_skipped() {
+        let b = parse(
+            Path::new("t.obj"),
+            b"\xEF\xBB\xBFv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            &opts(),
+        )
+        .unwrap();
+        assert_eq!(b.positions.len(), 3);
     }
 
     #[test]

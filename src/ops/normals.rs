@@ -8,11 +8,11 @@
 //! discontinuities; with `crease_angle`, corners across an edge sharper than that angle
 //! keep separate normals (the wedges split there), so hard edges stay hard.
 
+use crate::mesh::wedges::WedgeInterner;
 use crate::mesh::{Index, Mesh, Wedge};
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
@@ -63,16 +63,18 @@ fn find(parent: &mut [Index], mut x: Index) -> Index {
     x
 }
 
-/// Corner classes that share one normal: with no crease angle, all corners of a vertex;
-/// with one, the corners joined across smooth manifold edges.
-fn corner_classes(mesh: &Mesh, unit: &[DVec3], crease_angle: Option<f64>) -> Vec<Index> {
+/// For every corner (3t + k), the class of corners that share its normal, as dense ids in
+/// order of first appearance; and each class's vertex. With no crease angle a class is a
+/// vertex (ids = vertex indices); with one, the corners joined across smooth manifold edges.
+fn corner_classes(mesh: &Mesh, crease_angle: Option<f64>) -> (Vec<Index>, Vec<Index>) {
+    let corner_vertex = |c: usize| mesh.wedges[mesh.triangles[c / 3][c % 3] as usize].vertex;
     let corners = mesh.triangles.len() * 3;
     let Some(angle) = crease_angle else {
-        return (0..corners)
-            .map(|c| mesh.wedges[mesh.triangles[c / 3][c % 3] as usize].vertex)
-            .collect();
+        let classes = (0..corners).map(corner_vertex).collect();
+        return (classes, (0..mesh.positions.len() as Index).collect());
     };
     let cos_limit = angle.to_radians().cos();
+    let unit = |t: usize| mesh.triangle_cross(t).normalize_or_zero();
     // Half-edges keyed by their sorted vertex pair; sorting groups the sides of each edge.
     let mut half: Vec<(Index, Index, Index)> = Vec::with_capacity(corners);
     for t in 0..mesh.triangles.len() {
@@ -93,7 +95,7 @@ fn corner_classes(mesh: &Mesh, unit: &[DVec3], crease_angle: Option<f64>) -> Vec
         if j - i == 2 {
             let (c1, c2) = (half[i].2 as usize, half[i + 1].2 as usize);
             let (t1, t2) = (c1 / 3, c2 / 3);
-            if unit[t1].dot(unit[t2]) >= cos_limit {
+            if unit(t1).dot(unit(t2)) >= cos_limit {
                 // Join the corners at both ends of the edge across the two triangles.
                 for end in [(c1 % 3), (c1 % 3 + 1) % 3] {
                     let vertex = mesh.triangle_vertices(t1)[end];
@@ -114,48 +116,46 @@ fn corner_classes(mesh: &Mesh, unit: &[DVec3], crease_angle: Option<f64>) -> Vec
         }
         i = j;
     }
-    (0..corners as Index)
-        .map(|c| find(&mut parent, c))
-        .collect()
+    drop(half);
+    // Dense ids in order of first appearance, reusing `parent` as the root → id table.
+    let mut class_vertex = Vec::new();
+    let mut classes = Vec::with_capacity(corners);
+    let mut id_of_root = vec![Index::MAX; corners];
+    for c in 0..corners {
+        let root = find(&mut parent, c as Index) as usize;
+        if id_of_root[root] == Index::MAX {
+            id_of_root[root] = class_vertex.len() as Index;
+            class_vertex.push(corner_vertex(c));
+        }
+        classes.push(id_of_root[root]);
+    }
+    (classes, class_vertex)
 }
 
 /// Recomputes normals and writes them to the wedges.
 pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsReport {
     let wedges_before = mesh.wedges.len();
-    let cross: Vec<DVec3> = (0..mesh.triangles.len())
-        .into_par_iter()
-        .map(|t| mesh.triangle_cross(t))
-        .collect();
-    let unit: Vec<DVec3> = cross.par_iter().map(|c| c.normalize_or_zero()).collect();
-    let classes = corner_classes(mesh, &unit, params.crease_angle);
+    let (corner_class, class_vertex) = corner_classes(mesh, params.crease_angle);
 
-    // Dense ids for the classes, in order of first appearance (deterministic output).
-    let mut class_id: Vec<Index> = vec![Index::MAX; classes.len().max(mesh.positions.len())];
-    let mut class_vertex: Vec<Index> = Vec::new();
-    let mut corner_class: Vec<Index> = Vec::with_capacity(classes.len());
-    for (c, &root) in classes.iter().enumerate() {
-        let slot = &mut class_id[root as usize];
-        if *slot == Index::MAX {
-            *slot = class_vertex.len() as Index;
-            class_vertex.push(mesh.wedges[mesh.triangles[c / 3][c % 3] as usize].vertex);
-        }
-        corner_class.push(*slot);
-    }
-
+    // Weighted face normals per corner, summed per class (sequential: a scatter).
     let mut sums = vec![DVec3::ZERO; class_vertex.len()];
-    for (c, &class) in corner_class.iter().enumerate() {
-        let t = c / 3;
-        let weight = match params.weighting {
-            NormalWeighting::Area => cross[t],
-            NormalWeighting::Angle => {
-                let p = mesh.triangle_positions(t);
-                let k = c % 3;
-                let (e1, e2) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
-                unit[t] * e1.angle_between(e2).max(0.0)
+    for t in 0..mesh.triangles.len() {
+        let cross = mesh.triangle_cross(t);
+        if !cross.is_finite() {
+            continue;
+        }
+        let p = mesh.triangle_positions(t);
+        for k in 0..3 {
+            let weight = match params.weighting {
+                NormalWeighting::Area => cross,
+                NormalWeighting::Angle => {
+                    let (e1, e2) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
+                    cross.normalize_or_zero() * e1.angle_between(e2).max(0.0)
+                }
+            };
+            if weight.is_finite() {
+                sums[corner_class[3 * t + k] as usize] += weight;
             }
-        };
-        if weight.is_finite() {
-            sums[class as usize] += weight;
         }
     }
     let mut zero_normals = 0;
@@ -171,6 +171,7 @@ pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsRepo
             }
         })
         .collect();
+    drop(sums);
 
     let mut per_vertex = vec![0u32; mesh.positions.len()];
     for &v in &class_vertex {
@@ -179,23 +180,17 @@ pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsRepo
     let crease_vertices = per_vertex.iter().filter(|&&n| n > 1).count();
 
     // Rebuild the wedges: a wedge is now (vertex, texcoord, class normal).
-    let mut ids: HashMap<Wedge, Index> = HashMap::with_capacity(mesh.wedges.len());
-    let mut wedges = Vec::with_capacity(mesh.wedges.len());
+    let mut interner = WedgeInterner::new(mesh.positions.len());
     for (c, &class) in corner_class.iter().enumerate() {
         let (t, k) = (c / 3, c % 3);
         let old = mesh.wedges[mesh.triangles[t][k] as usize];
-        let wedge = Wedge {
+        mesh.triangles[t][k] = interner.intern(Wedge {
             vertex: old.vertex,
             texcoord: old.texcoord,
             normal: Some(class),
-        };
-        let id = *ids.entry(wedge).or_insert_with(|| {
-            wedges.push(wedge);
-            (wedges.len() - 1) as Index
         });
-        mesh.triangles[t][k] = id;
     }
-    mesh.wedges = wedges;
+    mesh.wedges = interner.into_wedges();
     mesh.normals = normals;
     NormalsReport {
         normals: mesh.normals.len(),

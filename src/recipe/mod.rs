@@ -4,9 +4,13 @@
 
 pub mod runner;
 
+use crate::metrics::MetricsOptions;
+use crate::ops::crop::CropParams;
 use crate::ops::decimate::DecimateParams;
+use crate::ops::fair::{FairParams, RelaxParams};
 use crate::ops::normals::NormalsParams;
 use crate::ops::seam_fix::SeamFixParams;
+use crate::ops::smooth::SmoothParams;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -21,14 +25,6 @@ pub enum RecipeError {
     },
     #[error("{path}: {message}")]
     Parse { path: PathBuf, message: String },
-    #[error(
-        "{path}: line {line}: step kind `{kind}` is not implemented in this version of scanmill"
-    )]
-    NotImplemented {
-        path: PathBuf,
-        line: usize,
-        kind: &'static str,
-    },
     #[error("{path}: line {line}: step `{kind}`: {message}")]
     Invalid {
         path: PathBuf,
@@ -82,18 +78,14 @@ impl Default for InputSpec {
     }
 }
 
-/// Parameters of a step kind that this version does not implement yet. Parsed so that the
-/// error can name the step and its line rather than "unknown variant".
-pub type PendingParams = toml::Table;
-
 /// One processing step. The variant name is the recipe's `kind`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Step {
-    Crop(PendingParams),
-    Relax(PendingParams),
-    Fair(PendingParams),
-    Smooth(PendingParams),
+    Crop(CropParams),
+    Relax(RelaxParams),
+    Fair(FairParams),
+    Smooth(SmoothParams),
     Decimate(DecimateParams),
     SeamFix(SeamFixParams),
     Normals(NormalsParams),
@@ -112,24 +104,59 @@ impl Step {
         }
     }
 
-    fn is_implemented(&self) -> bool {
-        matches!(
-            self,
-            Step::Normals(_) | Step::Decimate(_) | Step::SeamFix(_)
-        )
-    }
-
     fn validate(&self) -> Result<(), String> {
         match self {
             Step::Normals(p) => p.validate(),
+            Step::Crop(p) => p.validate(),
             Step::Decimate(p) => p.validate(),
             Step::SeamFix(p) => p.validate(),
-            _ => Ok(()),
+            Step::Relax(p) => p.validate(),
+            Step::Fair(p) => p.validate(),
+            Step::Smooth(p) => p.validate(),
         }
     }
 }
 
-/// The file as written, with the spans of its steps for error messages.
+/// The `[metrics]` table: quality metrics of the result against the input (and, for steps
+/// with `metrics = true`, of the step's result against its own input).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MetricsSpec {
+    /// Compute the final metrics (they cost about a second on a 400k-triangle scan).
+    pub enabled: bool,
+    /// Surface samples per direction.
+    pub samples: usize,
+    pub seed: u64,
+    /// Cracks: result boundary edges farther than this many mean input edge lengths from
+    /// every input boundary edge.
+    pub crack_distance_factor: f64,
+}
+
+impl Default for MetricsSpec {
+    fn default() -> Self {
+        let o = MetricsOptions::default();
+        MetricsSpec {
+            enabled: true,
+            samples: o.samples,
+            seed: o.seed,
+            crack_distance_factor: o.crack_distance_factor,
+        }
+    }
+}
+
+impl MetricsSpec {
+    pub fn options(&self) -> MetricsOptions {
+        MetricsOptions {
+            samples: self.samples,
+            seed: self.seed,
+            crack_distance_factor: self.crack_distance_factor,
+        }
+    }
+}
+
+/// The file as written, with the spans of its steps for error messages. Steps are read as
+/// tables first so that the `metrics` key, which every step kind accepts, can be taken out
+/// before the step's own parameters are checked.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RecipeFile {
@@ -138,7 +165,49 @@ struct RecipeFile {
     #[serde(default)]
     input: InputSpec,
     #[serde(default)]
-    step: Vec<toml::Spanned<Step>>,
+    metrics: MetricsSpec,
+    #[serde(default)]
+    step: Vec<toml::Spanned<toml::Table>>,
+}
+
+/// The 1-based line of the first line of the table whose header ends at `header_end` that
+/// `matches` (toml spans an array-of-tables element by its `[[step]]` header only, so the
+/// table runs to the next header).
+fn line_in_table(text: &str, header_end: usize, matches: impl Fn(&str) -> bool) -> Option<usize> {
+    let start = header_end.min(text.len());
+    let mut offset = start;
+    for line in text[start..].split_inclusive('\n') {
+        let rest = line.trim_start();
+        if rest.starts_with('[') {
+            break;
+        }
+        if matches(rest) {
+            return Some(text[..offset].matches('\n').count() + 1);
+        }
+        offset += line.len();
+    }
+    None
+}
+
+/// The line a step's deserialisation error is about: the unknown key's, or the line
+/// holding the unknown variant's value.
+fn error_line(text: &str, header_end: usize, message: &str) -> Option<usize> {
+    let quoted = |prefix: &str| {
+        message
+            .strip_prefix(prefix)
+            .and_then(|rest| rest.split('`').next())
+            .map(str::to_string)
+    };
+    if let Some(key) = quoted("unknown field `") {
+        return line_in_table(text, header_end, |l| {
+            l.strip_prefix(key.as_str())
+                .is_some_and(|after| after.trim_start().starts_with('='))
+        });
+    }
+    let value = quoted("unknown variant `")?;
+    line_in_table(text, header_end, |l| {
+        l.contains(&format!("\"{value}\"")) || l.contains(&format!("'{value}'"))
+    })
 }
 
 /// A parsed, validated recipe.
@@ -146,7 +215,11 @@ struct RecipeFile {
 pub struct Recipe {
     pub output: OutputSpec,
     pub input: InputSpec,
+    pub metrics: MetricsSpec,
     pub steps: Vec<Step>,
+    /// 1-based indices of the steps that asked for their own metrics (`metrics = true`).
+    #[serde(skip_serializing_if = "Vec::is_empty", default)]
+    pub step_metrics: Vec<usize>,
 }
 
 impl Recipe {
@@ -160,22 +233,46 @@ impl Recipe {
 
     /// Parses recipe text; `path` is only used in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Recipe, RecipeError> {
+        let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
+        // One line: "line 5: unknown variant `sharpen`, expected one of …".
         let file: RecipeFile = toml::from_str(text).map_err(|e| RecipeError::Parse {
             path: path.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
+            message: match e.span() {
+                Some(span) => format!("line {}: {}", line_of(span.start), e.message().trim()),
+                None => e.message().trim().to_string(),
+            }
+            .replace('\n', " "),
         })?;
-        let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
+        let parse_error = |line: usize, message: String| RecipeError::Parse {
+            path: path.to_path_buf(),
+            message: format!("line {line}: {}", message.trim().replace('\n', " ")),
+        };
+        file.metrics
+            .options()
+            .validate()
+            .map_err(|message| parse_error(line_of(0), format!("[metrics]: {message}")))?;
         let mut steps = Vec::with_capacity(file.step.len());
+        let mut step_metrics = Vec::new();
         for spanned in file.step {
             let line = line_of(spanned.span().start);
-            let step = spanned.into_inner();
-            if !step.is_implemented() {
-                return Err(RecipeError::NotImplemented {
-                    path: path.to_path_buf(),
-                    line,
-                    kind: step.kind(),
-                });
+            let spanned_range = spanned.span();
+            let mut table = spanned.into_inner();
+            match table.remove("metrics") {
+                None | Some(toml::Value::Boolean(false)) => {}
+                Some(toml::Value::Boolean(true)) => step_metrics.push(steps.len() + 1),
+                Some(other) => {
+                    return Err(parse_error(
+                        line,
+                        format!("`metrics` must be true or false, got {other}"),
+                    ));
+                }
             }
+            let step = Step::deserialize(toml::Value::Table(table)).map_err(|e| {
+                let message = e.message().to_string();
+                // Point at the offending key's line where the message names one.
+                let line = error_line(text, spanned_range.end, &message).unwrap_or(line);
+                parse_error(line, message)
+            })?;
             step.validate().map_err(|message| RecipeError::Invalid {
                 path: path.to_path_buf(),
                 line,
@@ -187,7 +284,9 @@ impl Recipe {
         Ok(Recipe {
             output: file.output,
             input: file.input,
+            metrics: file.metrics,
             steps,
+            step_metrics,
         })
     }
 
@@ -245,19 +344,6 @@ mod tests {
     }
 
     #[test]
-    fn pending_kind_is_a_clear_error() {
-        let e = parse("[[step]]\nkind = \"normals\"\n\n[[step]]\nkind = \"crop\"\nmargin = 1\n")
-            .unwrap_err();
-        match e {
-            RecipeError::NotImplemented { line, kind, .. } => {
-                assert_eq!(kind, "crop");
-                assert_eq!(line, 4);
-            }
-            other => panic!("unexpected {other}"),
-        }
-    }
-
-    #[test]
     fn decimate_and_seam_fix_parse_and_validate() {
         let r = parse(
             "[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\nmethod = \"face-collapse\"\n\n[[step]]\nkind = \"seam_fix\"\n",
@@ -283,6 +369,49 @@ mod tests {
         let b =
             parse("# comment\n[[step]]\n  kind = \"normals\"\n  weighting = \"area\"\n").unwrap();
         let c = parse("[[step]]\nkind = \"normals\"\ncrease_angle = 40.0\n").unwrap();
+        assert_eq!(a.hash(), b.hash());
+        assert_ne!(a.hash(), c.hash());
+    }
+
+    #[test]
+    fn crop_metrics_table_and_step_metrics() {
+        let r = parse(
+            "[metrics]\nsamples = 5000\nseed = 7\n\n[[step]]\nkind = \"crop\"\nabs_max = [100, 120.5, 80]\nmode = \"clip\"\nmetrics = true\n\n[[step]]\nkind = \"normals\"\n",
+        )
+        .unwrap();
+        assert_eq!(r.metrics.samples, 5000);
+        assert!(r.metrics.enabled);
+        assert_eq!(r.step_metrics, vec![1]);
+        match &r.steps[0] {
+            Step::Crop(p) => {
+                assert_eq!(p.abs_max, Some([100.0, 120.5, 80.0]));
+                assert_eq!(p.mode, crate::ops::crop::CropMode::Clip);
+            }
+            other => panic!("{other:?}"),
+        }
+        let e = parse("[[step]]\nkind = \"crop\"\nmin = [0, 0, 0]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 1") && e.contains("min and max"), "{e}");
+        let e = parse("\n[[step]]\nkind = \"crop\"\nabs_max = [1, 1, 1]\nmode = \"inside\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("line 5") && e.contains("any-corner-outside"),
+            "{e}"
+        );
+        let e = parse("[[step]]\nkind = \"normals\"\nmetrics = 1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("metrics"), "{e}");
+        let e = parse("[metrics]\nsamples = 0\n").unwrap_err().to_string();
+        assert!(e.contains("samples"), "{e}");
+        let e = parse("[metrics]\nsample = 10\n").unwrap_err().to_string();
+        assert!(e.contains("sample") && e.contains("enabled"), "{e}");
+        // Hash: the metrics settings count, a step's `metrics = false` is the default.
+        let a = parse("[[step]]\nkind = \"normals\"\n").unwrap();
+        let b = parse("[[step]]\nkind = \"normals\"\nmetrics = false\n").unwrap();
+        let c = parse("[metrics]\nenabled = false\n[[step]]\nkind = \"normals\"\n").unwrap();
         assert_eq!(a.hash(), b.hash());
         assert_ne!(a.hash(), c.hash());
     }

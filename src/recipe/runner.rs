@@ -2,8 +2,10 @@
 
 use super::{Recipe, Step};
 use crate::mesh::Mesh;
+use crate::metrics::{self, MetricsOptions};
 use crate::ops;
 use crate::report::StepReport;
+use serde_json::Value;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -36,6 +38,9 @@ fn figures<T: serde::Serialize>(value: T) -> serde_json::Value {
 fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_json::Value, String> {
     match step {
         Step::Normals(p) => Ok(figures(ops::normals::recompute_normals(mesh, p))),
+        Step::Crop(p) => ops::crop::crop(mesh, p)
+            .map(figures)
+            .map_err(|e| e.to_string()),
         Step::Decimate(p) => {
             let (out, report) = ops::decimate::decimate(mesh, p).map_err(|e| e.to_string())?;
             *mesh = out;
@@ -45,11 +50,84 @@ fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_jso
             let input = input.ok_or("seam_fix needs the loaded input mesh")?;
             Ok(figures(ops::seam_fix::seam_fix(mesh, input, p)))
         }
-        other => Err(format!(
-            "step kind `{}` is not implemented in this version",
-            other.kind()
-        )),
+        Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
+        Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
+        Step::Smooth(p) => Ok(figures(ops::smooth::smooth(mesh, p))),
     }
+}
+
+/// Metrics of `result` against `reference` as report JSON; a failure (which only a bug in a
+/// step can cause: an empty or non-finite mesh) is recorded in the report, not raised.
+pub fn metrics_value(result: &Mesh, reference: &Mesh, options: &MetricsOptions) -> Value {
+    match metrics::compare(result, reference, options) {
+        Ok(m) => serde_json::to_value(m).expect("metrics always serialise"),
+        Err(e) => {
+            tracing::warn!(error = %e, "metrics not computed");
+            serde_json::json!({ "error": e.to_string() })
+        }
+    }
+}
+
+/// The steps' reports and the final metrics.
+#[derive(Debug, Clone)]
+pub struct RunOutcome {
+    pub steps: Vec<StepReport>,
+    /// `metrics::FinalMetrics` of the result against the input as JSON (the input as the
+    /// recipe's crop steps left it, see [`run_recipe`]), or `Null` when the recipe turns
+    /// metrics off.
+    pub metrics: Value,
+}
+
+/// Runs the steps and, unless the recipe's `[metrics]` say otherwise, measures the result
+/// against the input.
+///
+/// The reference is the input *after the recipe's crop steps* (the input itself when there
+/// are none): a crop removes surface on purpose, and measuring it would drown what the
+/// other steps did in the distance to the cropped-away parts and count the new border as
+/// cracks. The thesis compares its decimations with the cropped scans too
+/// (spec/decimation.md §8.1). `metrics.reference` in the JSON says which it was.
+pub fn run_recipe(
+    recipe: &Recipe,
+    mesh: &mut Mesh,
+    progress: &dyn Progress,
+    first_stage: usize,
+    total_stages: usize,
+) -> Result<RunOutcome, StepError> {
+    if !recipe.metrics.enabled {
+        let steps = run_steps_observed(
+            recipe,
+            mesh,
+            progress,
+            first_stage,
+            total_stages,
+            &mut |_, _| {},
+        )?;
+        return Ok(RunOutcome {
+            steps,
+            metrics: Value::Null,
+        });
+    }
+    let mut reference = mesh.clone();
+    let mut cropped = false;
+    let steps = run_steps_observed(
+        recipe,
+        mesh,
+        progress,
+        first_stage,
+        total_stages,
+        &mut |step, after| {
+            if matches!(step, Step::Crop(_)) {
+                reference = after.clone();
+                cropped = true;
+            }
+        },
+    )?;
+    let mut metrics = metrics_value(mesh, &reference, &recipe.metrics.options());
+    if let Value::Object(map) = &mut metrics {
+        let which = if cropped { "input-after-crop" } else { "input" };
+        map.insert("reference".into(), Value::from(which));
+    }
+    Ok(RunOutcome { steps, metrics })
 }
 
 /// Runs every step of `recipe` on `mesh`. `first_stage`/`total_stages` place the steps
@@ -61,6 +139,25 @@ pub fn run_steps(
     first_stage: usize,
     total_stages: usize,
 ) -> Result<Vec<StepReport>, StepError> {
+    run_steps_observed(
+        recipe,
+        mesh,
+        progress,
+        first_stage,
+        total_stages,
+        &mut |_, _| {},
+    )
+}
+
+/// [`run_steps`], calling `after_step` with each step and the mesh it left.
+fn run_steps_observed(
+    recipe: &Recipe,
+    mesh: &mut Mesh,
+    progress: &dyn Progress,
+    first_stage: usize,
+    total_stages: usize,
+    after_step: &mut dyn FnMut(&Step, &Mesh),
+) -> Result<Vec<StepReport>, StepError> {
     let mut reports = Vec::with_capacity(recipe.steps.len());
     // The loaded input, for steps that refer back to it through `triangle_origins`.
     let input: Option<Arc<Mesh>> = recipe
@@ -69,6 +166,7 @@ pub fn run_steps(
         .any(|s| matches!(s, Step::SeamFix(_)))
         .then(|| Arc::new(mesh.clone()));
     for (i, step) in recipe.steps.iter().enumerate() {
+        let before = recipe.step_metrics.contains(&(i + 1)).then(|| mesh.clone());
         progress.stage(first_stage + i, total_stages, step.kind());
         let (vertices_before, faces_before) = (mesh.positions.len(), mesh.triangles.len());
         let start = Instant::now();
@@ -82,6 +180,8 @@ pub fn run_steps(
         debug_assert!(mesh.check_invariants().is_ok(), "{}", step.kind());
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
         tracing::debug!(wall_ms, faces = mesh.triangles.len(), "step done");
+        let metrics = before.map(|b| metrics_value(mesh, &b, &recipe.metrics.options()));
+        after_step(step, mesh);
         reports.push(StepReport {
             kind: step.kind().to_string(),
             wall_ms,
@@ -90,7 +190,53 @@ pub fn run_steps(
             faces_before,
             faces_after: mesh.triangles.len(),
             figures,
+            metrics,
         });
     }
     Ok(reports)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::uv_sphere;
+    use std::path::Path;
+
+    fn recipe(text: &str) -> Recipe {
+        Recipe::from_toml(text, Path::new("r.toml")).unwrap()
+    }
+
+    #[test]
+    fn final_metrics_against_the_cropped_input_and_per_step_metrics() {
+        let r = recipe(
+            "[metrics]\nsamples = 2000\n[[step]]\nkind = \"crop\"\nabs_max = [2, 2, 0.5]\nmode = \"clip\"\nmetrics = true\n[[step]]\nkind = \"normals\"\n",
+        );
+        let mut mesh = uv_sphere(1.0, 12, 16);
+        let out = run_recipe(&r, &mut mesh, &NoProgress, 1, 4).unwrap();
+        assert_eq!(out.metrics["reference"], "input-after-crop");
+        // Normals move nothing: the result is the cropped input.
+        assert!(out.metrics["distance"]["max"].as_f64().unwrap() < 1e-12);
+        assert_eq!(out.metrics["topology"]["cracks"], 0);
+        let step = out.steps[0].metrics.as_ref().unwrap();
+        assert_eq!(step["volume"]["result"]["status"], "not-closed");
+        assert_eq!(step["volume"]["reference"]["status"], "closed");
+        assert!(out.steps[1].metrics.is_none());
+        assert_eq!(out.steps[0].figures["mode"], "clip");
+    }
+
+    #[test]
+    fn metrics_off_and_crop_errors() {
+        let r = recipe("[metrics]\nenabled = false\n[[step]]\nkind = \"normals\"\n");
+        let mut mesh = uv_sphere(1.0, 6, 8);
+        assert!(
+            run_recipe(&r, &mut mesh, &NoProgress, 0, 1)
+                .unwrap()
+                .metrics
+                .is_null()
+        );
+        let r = recipe("[[step]]\nkind = \"crop\"\nmin = [5, 5, 5]\nmax = [6, 6, 6]\n");
+        let e = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap_err();
+        assert_eq!((e.index, e.kind), (1, "crop"));
+        assert!(e.message.contains("removes every triangle"), "{e}");
+    }
 }

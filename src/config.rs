@@ -1,0 +1,488 @@
+//! The daemon's configuration (`config/scanmill.toml`, DESIGN.md "Daemon configuration").
+//!
+//! Relative paths are taken relative to the working directory the daemon starts in (the
+//! repository root for `cargo run`, `/` under systemd, where the shipped unit uses absolute
+//! paths). Unknown keys are errors. [`DaemonConfig::validate`] collects every problem at
+//! once, so that `scanmill validate-config` can list them all.
+
+use crate::recipe::{Recipe, RecipeError};
+use serde::{Deserialize, Serialize};
+use std::path::{Component, Path, PathBuf};
+
+/// Where the configuration came from, for the log line that says so.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ConfigSource {
+    File(PathBuf),
+    BuiltIn,
+}
+
+impl std::fmt::Display for ConfigSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConfigSource::File(p) => write!(f, "{}", p.display()),
+            ConfigSource::BuiltIn => write!(f, "built-in default"),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{origin}: {}", problems.join("; "))]
+    Invalid {
+        origin: ConfigSource,
+        problems: Vec<String>,
+    },
+}
+
+fn default_state_dir() -> PathBuf {
+    PathBuf::from("./state")
+}
+fn default_workers() -> usize {
+    1
+}
+fn default_max_attempts() -> u32 {
+    3
+}
+fn default_retry_base_secs() -> f64 {
+    30.0
+}
+fn default_retry_max_secs() -> f64 {
+    3600.0
+}
+fn default_job_timeout_secs() -> f64 {
+    3600.0
+}
+fn default_drain_timeout_secs() -> f64 {
+    60.0
+}
+fn default_rescan_secs() -> f64 {
+    60.0
+}
+fn default_incomplete_report_secs() -> f64 {
+    600.0
+}
+fn default_max_input_bytes() -> u64 {
+    4 << 30
+}
+fn default_min_free_disk_mb() -> u64 {
+    1024
+}
+fn default_quiet() -> f64 {
+    30.0
+}
+fn default_recipe() -> PathBuf {
+    PathBuf::from("config/recipes/face-scan.toml")
+}
+
+/// One watched folder.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WatchConfig {
+    /// A scanner's export folder, watched recursively.
+    pub path: PathBuf,
+    /// Where finished scans go; never inside a watched folder.
+    pub output: PathBuf,
+    /// The recipe for every scan found here.
+    #[serde(default = "default_recipe")]
+    pub recipe: PathBuf,
+    /// A scan set unchanged (size, mtime, inode of every member) this long is complete.
+    /// Fractions allowed.
+    #[serde(default = "default_quiet")]
+    pub quiet_period_secs: f64,
+    /// `> 0`: do not use file events for this folder, walk it every `poll_secs` instead
+    /// (network shares send no events for remote writes).
+    #[serde(default)]
+    pub poll_secs: f64,
+    /// Glob patterns on the path relative to the watched folder (`*` within a name, `**`
+    /// across folders, `?` one character). Empty = everything. A pattern without `/`
+    /// matches the file name alone.
+    #[serde(default)]
+    pub include: Vec<String>,
+    /// Glob patterns to leave alone (in addition to the built-in temporary-file patterns).
+    #[serde(default)]
+    pub exclude: Vec<String>,
+    /// Optional marker file, e.g. `"{stem}.done"`: when it exists next to the scan (and
+    /// every member exists) the scan is ready at once, without waiting for the quiet period.
+    #[serde(default)]
+    pub marker: Option<String>,
+}
+
+/// The whole daemon configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DaemonConfig {
+    /// SQLite database, lock file.
+    #[serde(default = "default_state_dir")]
+    pub state_dir: PathBuf,
+    /// Jobs processed at the same time.
+    #[serde(default = "default_workers")]
+    pub workers: usize,
+    /// Create missing watch, output and state folders at start-up (handy for a fresh
+    /// checkout; leave it off in production so a missing mount is an error).
+    #[serde(default)]
+    pub create_missing_dirs: bool,
+    /// Attempts before a job that keeps failing for a transient reason is quarantined.
+    #[serde(default = "default_max_attempts")]
+    pub max_attempts: u32,
+    /// Retry delay after the first failed attempt; doubles each attempt, up to the max.
+    #[serde(default = "default_retry_base_secs")]
+    pub retry_base_secs: f64,
+    #[serde(default = "default_retry_max_secs")]
+    pub retry_max_secs: f64,
+    /// A job running longer than this is abandoned and recorded as failed (timeout).
+    #[serde(default = "default_job_timeout_secs")]
+    pub job_timeout_secs: f64,
+    /// On SIGTERM, running jobs get this long to finish before they are put back in the
+    /// queue. Keep it below the unit's `TimeoutStopSec`.
+    #[serde(default = "default_drain_timeout_secs")]
+    pub drain_timeout_secs: f64,
+    /// Full walk of every watched folder this often, whatever the events say.
+    #[serde(default = "default_rescan_secs")]
+    pub rescan_secs: f64,
+    /// A scan with a member still missing is recorded as waiting (and logged) after this long.
+    #[serde(default = "default_incomplete_report_secs")]
+    pub incomplete_report_secs: f64,
+    /// Largest input set (all members together) accepted, in bytes.
+    #[serde(default = "default_max_input_bytes")]
+    pub max_input_bytes: u64,
+    /// Claiming pauses while an output folder's file system has less free space than this.
+    #[serde(default = "default_min_free_disk_mb")]
+    pub min_free_disk_mb: u64,
+    #[serde(default)]
+    pub watch: Vec<WatchConfig>,
+}
+
+impl DaemonConfig {
+    /// The built-in default: watch `./inbox`, write `./outbox`, state in `./state`.
+    pub fn built_in() -> DaemonConfig {
+        DaemonConfig {
+            state_dir: default_state_dir(),
+            workers: default_workers(),
+            create_missing_dirs: true,
+            max_attempts: default_max_attempts(),
+            retry_base_secs: default_retry_base_secs(),
+            retry_max_secs: default_retry_max_secs(),
+            job_timeout_secs: default_job_timeout_secs(),
+            drain_timeout_secs: default_drain_timeout_secs(),
+            rescan_secs: default_rescan_secs(),
+            incomplete_report_secs: default_incomplete_report_secs(),
+            max_input_bytes: default_max_input_bytes(),
+            min_free_disk_mb: default_min_free_disk_mb(),
+            watch: vec![WatchConfig {
+                path: PathBuf::from("./inbox"),
+                output: PathBuf::from("./outbox"),
+                recipe: default_recipe(),
+                quiet_period_secs: default_quiet(),
+                poll_secs: 0.0,
+                include: Vec::new(),
+                exclude: Vec::new(),
+                marker: None,
+            }],
+        }
+    }
+
+    pub fn from_toml(text: &str, path: &Path) -> Result<DaemonConfig, ConfigError> {
+        toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string().trim_end().to_string(),
+        })
+    }
+
+    pub fn from_path(path: &Path) -> Result<DaemonConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        DaemonConfig::from_toml(&text, path)
+    }
+
+    /// Finds and parses the configuration: `explicit` (from `--config`), else
+    /// `$SCANMILL_CONFIG`, else `config/scanmill.toml` if it exists, else the built-in
+    /// default. Does not validate.
+    pub fn locate(explicit: Option<&Path>) -> Result<(DaemonConfig, ConfigSource), ConfigError> {
+        let chosen = match explicit {
+            Some(p) => Some(p.to_path_buf()),
+            None => match std::env::var_os("SCANMILL_CONFIG") {
+                Some(p) if !p.is_empty() => Some(PathBuf::from(p)),
+                _ => {
+                    let default = PathBuf::from("config/scanmill.toml");
+                    default.is_file().then_some(default)
+                }
+            },
+        };
+        match chosen {
+            Some(path) => Ok((DaemonConfig::from_path(&path)?, ConfigSource::File(path))),
+            None => Ok((DaemonConfig::built_in(), ConfigSource::BuiltIn)),
+        }
+    }
+
+    /// The database file.
+    pub fn database_path(&self) -> PathBuf {
+        self.state_dir.join("scanmill.sqlite")
+    }
+
+    /// Checks everything that can be checked without starting: numbers in range, folders
+    /// exist (or will be created), outputs and state outside every watched folder, watched
+    /// folders not nested, recipes parse. Returns every problem found.
+    pub fn validate(&self) -> Vec<String> {
+        let mut problems = Vec::new();
+        let positive = |name: &str, v: f64, problems: &mut Vec<String>| {
+            if !(v.is_finite() && v > 0.0) {
+                problems.push(format!(
+                    "{name} must be a positive number of seconds, not {v}"
+                ));
+            }
+        };
+        if self.workers == 0 || self.workers > 64 {
+            problems.push(format!("workers must be 1..=64, not {}", self.workers));
+        }
+        if self.max_attempts == 0 {
+            problems.push("max_attempts must be at least 1".into());
+        }
+        positive("retry_base_secs", self.retry_base_secs, &mut problems);
+        positive("retry_max_secs", self.retry_max_secs, &mut problems);
+        positive("job_timeout_secs", self.job_timeout_secs, &mut problems);
+        positive("drain_timeout_secs", self.drain_timeout_secs, &mut problems);
+        positive("rescan_secs", self.rescan_secs, &mut problems);
+        positive(
+            "incomplete_report_secs",
+            self.incomplete_report_secs,
+            &mut problems,
+        );
+        if self.watch.is_empty() {
+            problems.push("no [[watch]] folder configured".into());
+        }
+        self.check_dir("state_dir", &self.state_dir, &mut problems);
+        let state = absolute(&self.state_dir);
+        for (i, w) in self.watch.iter().enumerate() {
+            let name = format!("watch[{i}] ({})", w.path.display());
+            if !(w.quiet_period_secs.is_finite() && w.quiet_period_secs >= 0.05) {
+                problems.push(format!(
+                    "{name}: quiet_period_secs must be at least 0.05, not {}",
+                    w.quiet_period_secs
+                ));
+            }
+            if !(w.poll_secs.is_finite() && w.poll_secs >= 0.0) {
+                problems.push(format!("{name}: poll_secs must be 0 or positive"));
+            }
+            for p in w.include.iter().chain(&w.exclude) {
+                if p.is_empty() {
+                    problems.push(format!("{name}: empty include/exclude pattern"));
+                }
+            }
+            if let Some(m) = &w.marker
+                && (m.is_empty() || m.contains('/'))
+            {
+                problems.push(format!(
+                    "{name}: marker must be a file name such as \"{{stem}}.done\""
+                ));
+            }
+            self.check_dir(&format!("{name}: path"), &w.path, &mut problems);
+            self.check_dir(&format!("{name}: output"), &w.output, &mut problems);
+            let root = absolute(&w.path);
+            let out = absolute(&w.output);
+            if out.starts_with(&root) || root.starts_with(&out) {
+                problems.push(format!(
+                    "{name}: output {} and the watched folder must not contain one another \
+                     (the daemon would process its own output)",
+                    w.output.display()
+                ));
+            }
+            if state.starts_with(&root) {
+                problems.push(format!(
+                    "{name}: state_dir must not be inside the watched folder"
+                ));
+            }
+            for (j, other) in self.watch.iter().enumerate().skip(i + 1) {
+                let o = absolute(&other.path);
+                if o.starts_with(&root) || root.starts_with(&o) {
+                    problems.push(format!(
+                        "{name} and watch[{j}] ({}) overlap; watched folders must be disjoint",
+                        other.path.display()
+                    ));
+                }
+                if absolute(&other.output).starts_with(&root) {
+                    problems.push(format!(
+                        "watch[{j}]: output is inside watched folder {}",
+                        w.path.display()
+                    ));
+                }
+            }
+            if let Err(e) = load_recipe(&w.recipe) {
+                problems.push(format!("{name}: recipe: {e}"));
+            }
+        }
+        problems
+    }
+
+    fn check_dir(&self, name: &str, path: &Path, problems: &mut Vec<String>) {
+        match std::fs::metadata(path) {
+            Ok(m) if m.is_dir() => {}
+            Ok(_) => problems.push(format!("{name}: {} is not a folder", path.display())),
+            Err(_) if self.create_missing_dirs => {
+                // It will be created: its nearest existing ancestor must be a folder.
+                let mut ancestor = absolute(path);
+                while !ancestor.exists() {
+                    if !ancestor.pop() {
+                        break;
+                    }
+                }
+                if !ancestor.is_dir() {
+                    problems.push(format!("{name}: cannot create {}", path.display()));
+                }
+            }
+            Err(e) => problems.push(format!("{name}: {}: {e}", path.display())),
+        }
+    }
+
+    /// A stable hash of the resolved configuration (recorded with each job).
+    pub fn hash(&self) -> String {
+        use sha2::{Digest, Sha256};
+        let canonical = serde_json::to_string(self).expect("config serialises");
+        hex::encode(Sha256::digest(canonical.as_bytes()))
+    }
+}
+
+/// Loads a watch folder's recipe. The shipped face-scan recipe may be missing on an odd
+/// checkout; only for that exact default path the daemon falls back to a minimal
+/// normals-only recipe (and says so), so that `scanmill daemon` on a fresh clone works.
+pub fn load_recipe(path: &Path) -> Result<Recipe, RecipeError> {
+    match Recipe::from_path(path) {
+        Err(RecipeError::Io { source, .. })
+            if source.kind() == std::io::ErrorKind::NotFound && path == default_recipe() =>
+        {
+            tracing::warn!(
+                "{}: not found; using the built-in minimal recipe (normals only)",
+                path.display()
+            );
+            Recipe::from_toml(BUILT_IN_RECIPE, Path::new("<built-in recipe>"))
+        }
+        other => other,
+    }
+}
+
+/// The fallback recipe: recompute normals, write OBJ.
+pub const BUILT_IN_RECIPE: &str = "[output]\nformat = \"obj\"\n\n[[step]]\nkind = \"normals\"\n";
+
+/// `path` made absolute against the working directory and cleaned of `.` and `..`
+/// (lexically: the folders may not exist yet).
+pub fn absolute(path: &Path) -> PathBuf {
+    let joined = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir()
+            .unwrap_or_else(|_| PathBuf::from("/"))
+            .join(path)
+    };
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                out.pop();
+            }
+            other => out.push(other.as_os_str()),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> DaemonConfig {
+        DaemonConfig::from_toml(text, Path::new("t.toml")).unwrap()
+    }
+
+    #[test]
+    fn design_shape_parses_with_defaults() {
+        let c = parse(
+            "state_dir = \"./state\"\nworkers = 1\n[[watch]]\npath = \"./inbox\"\noutput = \"./outbox\"\n\
+             recipe = \"config/recipes/face-scan.toml\"\nquiet_period_secs = 30\npoll_secs = 0\n",
+        );
+        assert_eq!(c.workers, 1);
+        assert_eq!(c.watch.len(), 1);
+        assert_eq!(c.watch[0].quiet_period_secs, 30.0);
+        assert_eq!(c.max_attempts, 3);
+        assert!(!c.create_missing_dirs);
+    }
+
+    #[test]
+    fn fractional_quiet_period_accepted() {
+        let c = parse("[[watch]]\npath = \"a\"\noutput = \"b\"\nquiet_period_secs = 0.5\n");
+        assert_eq!(c.watch[0].quiet_period_secs, 0.5);
+    }
+
+    #[test]
+    fn unknown_key_is_an_error() {
+        let e = DaemonConfig::from_toml("wrokers = 2\n", Path::new("t.toml")).unwrap_err();
+        assert!(e.to_string().contains("wrokers"), "{e}");
+    }
+
+    #[test]
+    fn validate_reports_output_inside_watch_and_missing_dirs() {
+        let dir = tempfile::tempdir().unwrap();
+        let inbox = dir.path().join("in");
+        std::fs::create_dir(&inbox).unwrap();
+        let recipe = dir.path().join("r.toml");
+        std::fs::write(&recipe, BUILT_IN_RECIPE).unwrap();
+        let text = format!(
+            "state_dir = {:?}\n[[watch]]\npath = {:?}\noutput = {:?}\nrecipe = {:?}\nquiet_period_secs = 0\n",
+            dir.path().join("missing-state"),
+            inbox,
+            inbox.join("out"),
+            recipe
+        );
+        let problems = parse(&text).validate();
+        let all = problems.join("\n");
+        assert!(all.contains("must not contain one another"), "{all}");
+        assert!(all.contains("quiet_period_secs"), "{all}");
+        assert!(all.contains("missing-state"), "{all}");
+        assert!(all.contains("output"), "{all}");
+    }
+
+    #[test]
+    fn validate_accepts_good_config_and_rejects_bad_recipe() {
+        let dir = tempfile::tempdir().unwrap();
+        for d in ["in", "out", "state"] {
+            std::fs::create_dir(dir.path().join(d)).unwrap();
+        }
+        let recipe = dir.path().join("r.toml");
+        std::fs::write(&recipe, BUILT_IN_RECIPE).unwrap();
+        let text = format!(
+            "state_dir = {:?}\n[[watch]]\npath = {:?}\noutput = {:?}\nrecipe = {:?}\n",
+            dir.path().join("state"),
+            dir.path().join("in"),
+            dir.path().join("out"),
+            recipe
+        );
+        assert_eq!(parse(&text).validate(), Vec::<String>::new());
+        std::fs::write(&recipe, "[[step]]\nkind = \"sharpen\"\n").unwrap();
+        let problems = parse(&text).validate();
+        assert_eq!(problems.len(), 1, "{problems:?}");
+        assert!(problems[0].contains("recipe"));
+    }
+
+    #[test]
+    fn overlapping_watch_roots_rejected() {
+        let c = parse(
+            "create_missing_dirs = true\n[[watch]]\npath = \"/tmp/x\"\noutput = \"/tmp/o1\"\n\
+             [[watch]]\npath = \"/tmp/x/y\"\noutput = \"/tmp/o2\"\n",
+        );
+        assert!(c.validate().iter().any(|p| p.contains("overlap")));
+    }
+
+    #[test]
+    fn absolute_cleans_dots() {
+        assert_eq!(absolute(Path::new("/a/./b/../c")), PathBuf::from("/a/c"));
+    }
+}

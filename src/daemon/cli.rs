@@ -1,0 +1,436 @@
+//! The service's subcommands, as a clap `Subcommand` that `main.rs` flattens into its own:
+//! `daemon`, `history`, `show`, `requeue`, `validate-config`, `db backup`.
+//! Each returns an exit code (sysexits, see docs/service.md "Exit codes").
+
+use super::service::{self, ServiceError, TestHooks};
+use super::worker::{ProcessFailure, Processor};
+use crate::config::{ConfigError, DaemonConfig};
+use crate::store::query::{HistoryFilter, HistoryRow, STATES};
+use crate::store::{Store, StoreError, now_ms};
+use clap::Subcommand;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Exit codes (sysexits.h).
+pub mod exit {
+    pub const OK: u8 = 0;
+    pub const FAILURE: u8 = 1;
+    pub const USAGE: u8 = 64;
+    pub const UNAVAILABLE: u8 = 69;
+    pub const CANT_CREATE: u8 = 73;
+    pub const TEMP_FAIL: u8 = 75;
+    pub const CONFIG: u8 = 78;
+}
+
+#[derive(Debug, Clone, Subcommand)]
+pub enum ServiceCommand {
+    /// Run the service: watch folders, process new scans, record every job.
+    Daemon {
+        /// Daemon configuration (default: $SCANMILL_CONFIG, else config/scanmill.toml, else built-in).
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// List jobs from the audit log.
+    History {
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Only jobs queued since: a duration back from now (90s, 30m, 12h, 7d) or a UTC date/time.
+        #[arg(long)]
+        since: Option<String>,
+        /// Only jobs in this state: queued, running, done, failed, quarantined, or waiting
+        /// (scans not yet jobs: a member missing or unreadable).
+        #[arg(long)]
+        status: Option<String>,
+        /// Only inputs whose path matches this glob (SQLite GLOB on root/relative path).
+        #[arg(long)]
+        input: Option<String>,
+        /// Print JSON (one array).
+        #[arg(long, conflicts_with = "csv")]
+        json: bool,
+        /// Print CSV with a header line.
+        #[arg(long)]
+        csv: bool,
+        /// At most this many rows.
+        #[arg(long)]
+        limit: Option<usize>,
+    },
+    /// Show everything recorded about one job (inputs, recipe, attempts, step timings, metrics, outputs), as JSON.
+    Show {
+        job: i64,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Put a job back in the queue (a fresh attempt count; its output is published again, with a suffix if needed).
+    Requeue {
+        job: i64,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Check the daemon configuration; exit 78 if it is not valid.
+    ValidateConfig {
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Database maintenance.
+    Db {
+        #[command(subcommand)]
+        command: DbCommand,
+    },
+}
+
+#[derive(Debug, Clone, Subcommand)]
+pub enum DbCommand {
+    /// Copy the database with SQLite's online backup (safe while the daemon runs), then check the copy.
+    Backup {
+        file: PathBuf,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+}
+
+impl ServiceCommand {
+    /// Whether this command sets up its own logging (the daemon logs at info, to journald
+    /// under systemd); `main` should not install a subscriber first.
+    pub fn owns_logging(&self) -> bool {
+        matches!(self, ServiceCommand::Daemon { .. })
+    }
+
+    /// Runs the command; returns the process exit code.
+    pub fn run(&self) -> u8 {
+        // Unlocked handles: a held stderr lock would block every log line from other
+        // threads (the daemon's jobs) for the whole run.
+        let mut out = std::io::stdout();
+        let mut err = std::io::stderr();
+        match self {
+            ServiceCommand::Daemon { config } => {
+                run_daemon(config.as_deref(), default_processor(), &mut err)
+            }
+            ServiceCommand::ValidateConfig { config } => {
+                validate_config(config.as_deref(), &mut out, &mut err)
+            }
+            ServiceCommand::History {
+                config,
+                since,
+                status,
+                input,
+                json,
+                csv,
+                limit,
+            } => {
+                let format = if *json {
+                    Format::Json
+                } else if *csv {
+                    Format::Csv
+                } else {
+                    Format::Text
+                };
+                let args = HistoryArgs {
+                    since: since.clone(),
+                    status: status.clone(),
+                    input: input.clone(),
+                    limit: *limit,
+                    format,
+                };
+                report(history(config.as_deref(), &args, &mut out), &mut err)
+            }
+            ServiceCommand::Show { job, config } => {
+                report(show(config.as_deref(), *job, &mut out), &mut err)
+            }
+            ServiceCommand::Requeue { job, config } => {
+                report(requeue(config.as_deref(), *job, &mut out), &mut err)
+            }
+            ServiceCommand::Db {
+                command: DbCommand::Backup { file, config },
+            } => report(db_backup(config.as_deref(), file, &mut out), &mut err),
+        }
+    }
+}
+
+/// A command's failure: its exit code and one line for stderr.
+#[derive(Debug)]
+pub struct CliError {
+    pub code: u8,
+    pub message: String,
+}
+
+impl From<StoreError> for CliError {
+    fn from(e: StoreError) -> CliError {
+        let code = match &e {
+            StoreError::Missing { .. } => exit::UNAVAILABLE,
+            StoreError::TooNew { .. } => exit::CONFIG,
+            StoreError::NoSuchJob(_) => exit::USAGE,
+            StoreError::WrongState { .. } => exit::TEMP_FAIL,
+            StoreError::Sqlite { source, .. }
+                if matches!(
+                    source.sqlite_error_code(),
+                    Some(rusqlite::ErrorCode::DatabaseBusy)
+                ) =>
+            {
+                exit::TEMP_FAIL
+            }
+            _ => exit::FAILURE,
+        };
+        CliError {
+            code,
+            message: e.to_string(),
+        }
+    }
+}
+
+impl From<ConfigError> for CliError {
+    fn from(e: ConfigError) -> CliError {
+        CliError {
+            code: exit::CONFIG,
+            message: e.to_string(),
+        }
+    }
+}
+
+impl From<std::io::Error> for CliError {
+    fn from(e: std::io::Error) -> CliError {
+        CliError {
+            code: exit::FAILURE,
+            message: e.to_string(),
+        }
+    }
+}
+
+fn report(result: Result<(), CliError>, err: &mut dyn Write) -> u8 {
+    match result {
+        Ok(()) => exit::OK,
+        Err(e) => {
+            let _ = writeln!(err, "scanmill: error: {}", e.message);
+            e.code
+        }
+    }
+}
+
+/// The worker's processor: the same `process_scan` as `scanmill process`.
+pub fn default_processor() -> Processor {
+    Arc::new(|input, recipe, recipe_path, out_dir, progress| {
+        crate::process::process_scan(input, recipe, Some(recipe_path), out_dir, progress).map_err(
+            |e| {
+                let kind = match &e {
+                    crate::process::ProcessError::Input(_) => "input",
+                    crate::process::ProcessError::Step { .. } => "step",
+                    crate::process::ProcessError::Output { .. } => "output",
+                };
+                ProcessFailure {
+                    kind: kind.into(),
+                    transient: e.is_transient(),
+                    message: e.to_string(),
+                }
+            },
+        )
+    })
+}
+
+/// `scanmill daemon`: runs until SIGTERM/SIGINT. Exit 0 after a clean stop, 78 for a bad
+/// configuration, 75 when another daemon holds the state directory, 69 when the database
+/// cannot be opened.
+pub fn run_daemon(config: Option<&Path>, processor: Processor, err: &mut dyn Write) -> u8 {
+    super::systemd::init_logging();
+    let (cfg, origin) = match DaemonConfig::locate(config) {
+        Ok(x) => x,
+        Err(e) => {
+            let _ = writeln!(err, "scanmill: error: {e}");
+            return exit::CONFIG;
+        }
+    };
+    match service::run(cfg, origin, processor, TestHooks::from_env()) {
+        Ok(()) => exit::OK,
+        Err(e) => {
+            tracing::error!("{e}");
+            let _ = writeln!(err, "scanmill: error: {e}");
+            match e {
+                ServiceError::Config { .. } => exit::CONFIG,
+                ServiceError::Locked(_) => exit::TEMP_FAIL,
+                ServiceError::Store(StoreError::TooNew { .. }) => exit::CONFIG,
+                ServiceError::Store(_) => exit::UNAVAILABLE,
+                ServiceError::Io { .. } => exit::CANT_CREATE,
+            }
+        }
+    }
+}
+
+/// `scanmill validate-config`: prints "ok" or every problem; exit 78 on a bad config.
+pub fn validate_config(config: Option<&Path>, out: &mut dyn Write, err: &mut dyn Write) -> u8 {
+    let (cfg, origin) = match DaemonConfig::locate(config) {
+        Ok(x) => x,
+        Err(e) => {
+            let _ = writeln!(err, "scanmill: error: {e}");
+            return exit::CONFIG;
+        }
+    };
+    let problems = cfg.validate();
+    if problems.is_empty() {
+        let _ = writeln!(out, "{origin}: ok ({} watched folder(s))", cfg.watch.len());
+        exit::OK
+    } else {
+        let _ = writeln!(err, "{origin}: invalid configuration:");
+        for p in problems {
+            let _ = writeln!(err, "  {p}");
+        }
+        exit::CONFIG
+    }
+}
+
+fn open_store(config: Option<&Path>, write: bool) -> Result<Store, CliError> {
+    let (cfg, _) = DaemonConfig::locate(config)?;
+    Ok(Store::open_existing(&cfg.database_path(), write)?)
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Text,
+    Json,
+    Csv,
+}
+
+#[derive(Debug, Clone)]
+pub struct HistoryArgs {
+    pub since: Option<String>,
+    pub status: Option<String>,
+    pub input: Option<String>,
+    pub limit: Option<usize>,
+    pub format: Format,
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// `scanmill history`.
+pub fn history(
+    config: Option<&Path>,
+    args: &HistoryArgs,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    if let Some(s) = &args.status
+        && !STATES.contains(&s.as_str())
+    {
+        return Err(CliError {
+            code: exit::USAGE,
+            message: format!("--status {s}: expected one of {}", STATES.join(", ")),
+        });
+    }
+    let store = open_store(config, false)?;
+    let since_ms = match &args.since {
+        Some(s) => Some(store.parse_since(s, now_ms()).ok_or_else(|| CliError {
+            code: exit::USAGE,
+            message: format!("--since {s}: expected e.g. 7d, 12h, 30m or 2026-11-01[T08:00:00]"),
+        })?),
+        None => None,
+    };
+    let rows = store.history(&HistoryFilter {
+        since_ms,
+        status: args.status.clone(),
+        input_glob: args.input.clone(),
+        limit: args.limit,
+    })?;
+    match args.format {
+        Format::Json => {
+            serde_json::to_writer_pretty(&mut *out, &rows).map_err(std::io::Error::other)?;
+            writeln!(out)?;
+        }
+        Format::Csv => {
+            writeln!(
+                out,
+                "id,state,created,finished,input,recipe,attempts,in_faces,out_faces,process_ms,output,error_kind,error"
+            )?;
+            for r in &rows {
+                let opt = |v: Option<String>| v.unwrap_or_default();
+                let fields = [
+                    opt(r.id.map(|v| v.to_string())),
+                    r.state.clone(),
+                    r.created.clone(),
+                    opt(r.finished.clone()),
+                    r.input.clone(),
+                    r.recipe.clone(),
+                    r.attempts.to_string(),
+                    opt(r.in_faces.map(|v| v.to_string())),
+                    opt(r.out_faces.map(|v| v.to_string())),
+                    opt(r.process_ms.map(|v| format!("{v:.1}"))),
+                    opt(r.output.clone()),
+                    opt(r.error_kind.clone()),
+                    opt(r.error.clone()),
+                ];
+                let line: Vec<String> = fields.iter().map(|f| csv_field(f)).collect();
+                writeln!(out, "{}", line.join(","))?;
+            }
+        }
+        Format::Text => write_history_text(&rows, out)?,
+    }
+    Ok(())
+}
+
+fn write_history_text(rows: &[HistoryRow], out: &mut dyn Write) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{:>6}  {:<11}  {:<24}  {:>9}  {:>9}  {:>9}  input / output or error",
+        "id", "state", "created", "faces in", "faces out", "ms"
+    )?;
+    for r in rows {
+        let detail = match (&r.output, &r.error) {
+            (_, Some(e)) => format!("{}  ! {}", r.input, e),
+            (Some(o), None) => format!("{}  -> {}", r.input, o),
+            (None, None) => r.input.clone(),
+        };
+        let num = |v: Option<i64>| v.map(|v| v.to_string()).unwrap_or_else(|| "-".into());
+        writeln!(
+            out,
+            "{:>6}  {:<11}  {:<24}  {:>9}  {:>9}  {:>9}  {}",
+            r.id.map(|v| v.to_string()).unwrap_or_else(|| "-".into()),
+            r.state,
+            r.created,
+            num(r.in_faces),
+            num(r.out_faces),
+            r.process_ms
+                .map(|v| format!("{v:.0}"))
+                .unwrap_or_else(|| "-".into()),
+            detail
+        )?;
+    }
+    writeln!(out, "{} row(s)", rows.len())
+}
+
+/// `scanmill show JOB`: everything recorded, as pretty JSON.
+pub fn show(config: Option<&Path>, job: i64, out: &mut dyn Write) -> Result<(), CliError> {
+    let store = open_store(config, false)?;
+    let value = store.show(job)?;
+    serde_json::to_writer_pretty(&mut *out, &value).map_err(std::io::Error::other)?;
+    writeln!(out)?;
+    Ok(())
+}
+
+/// `scanmill requeue JOB`.
+pub fn requeue(config: Option<&Path>, job: i64, out: &mut dyn Write) -> Result<(), CliError> {
+    let mut store = open_store(config, true)?;
+    let was = store.requeue(job)?;
+    writeln!(out, "job {job}: {was} -> queued")?;
+    Ok(())
+}
+
+/// `scanmill db backup FILE`: online backup, then `PRAGMA integrity_check` on the copy.
+pub fn db_backup(config: Option<&Path>, file: &Path, out: &mut dyn Write) -> Result<(), CliError> {
+    if file.exists() {
+        return Err(CliError {
+            code: exit::CANT_CREATE,
+            message: format!("{}: exists; not overwriting", file.display()),
+        });
+    }
+    let store = open_store(config, false)?;
+    store.backup(file)?;
+    writeln!(
+        out,
+        "{} -> {} (integrity ok)",
+        store.path().display(),
+        file.display()
+    )?;
+    Ok(())
+}

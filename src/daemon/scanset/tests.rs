@@ -1,0 +1,203 @@
+use super::*;
+use crate::daemon::glob::Filter;
+
+const JAMES: &str = "../shared/data/textured/james_face_stereo_capture";
+
+fn root(dir: &Path, quiet_ms: u64, marker: Option<&str>) -> RootSpec {
+    RootSpec {
+        path: dir.to_path_buf(),
+        filter: Filter::default(),
+        quiet: Duration::from_millis(quiet_ms),
+        marker: marker.map(str::to_string),
+    }
+}
+
+fn tracker(dir: &Path, quiet_ms: u64, marker: Option<&str>) -> Tracker {
+    Tracker::new(
+        vec![root(dir, quiet_ms, marker)],
+        Known::new(),
+        Duration::from_secs(5),
+        Duration::from_secs(60),
+    )
+}
+
+fn ready(events: &[Event]) -> Vec<&ReadySet> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Ready(r) => Some(r),
+            _ => None,
+        })
+        .collect()
+}
+
+fn copy_james(to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for f in ["james.obj", "james.obj.mtl", "james.jpg"] {
+        std::fs::write(to.join(f), std::fs::read(Path::new(JAMES).join(f)).unwrap()).unwrap();
+    }
+}
+
+#[test]
+fn map_file_name_strips_options_and_keeps_spaces() {
+    assert_eq!(map_file_name("tex.png"), "tex.png");
+    assert_eq!(map_file_name("-s 1 1 1 my tex.png"), "my tex.png");
+    assert_eq!(map_file_name("-clamp on -bm 0.5 a.jpg"), "a.jpg");
+    assert_eq!(map_file_name("-o 0.5 b.png"), "b.png");
+}
+
+#[test]
+fn james_set_has_obj_mtl_and_texture() {
+    let spec = {
+        let p = Path::new(JAMES).join("james.obj");
+        set_spec(&p, StatSig::of(&p).unwrap(), &mut RefCache::default()).unwrap()
+    };
+    let roles: Vec<_> = spec.members.iter().map(|m| m.role).collect();
+    assert_eq!(roles, ["mesh", "mtl", "texture"]);
+    assert!(spec.missing.is_empty(), "{:?}", spec.missing);
+}
+
+#[test]
+fn mtllib_with_spaces_and_subfolder_textures() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("tex")).unwrap();
+    std::fs::write(
+        d.join("a b.mtl"),
+        "newmtl m\nmap_Kd -s 1 1 1 tex/skin map.png\nbump tex\\n.png\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("tex/skin map.png"), b"x").unwrap();
+    std::fs::write(d.join("s.obj"), "mtllib a b.mtl\nv 0 0 0\n").unwrap();
+    let p = d.join("s.obj");
+    let spec = set_spec(&p, StatSig::of(&p).unwrap(), &mut RefCache::default()).unwrap();
+    assert_eq!(spec.members.len(), 3, "{spec:?}");
+    assert_eq!(spec.missing, ["tex/n.png (named by a b.mtl)"]);
+}
+
+#[test]
+fn ply_ready_only_after_quiet_period_and_again_after_change() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("a.ply"), b"ply\n").unwrap();
+    let mut t = tracker(d, 300, None);
+    let t0 = Instant::now();
+    assert!(ready(&t.reconcile_root(0, t0, 0)).is_empty());
+    assert_eq!(t.pending(), 1);
+    assert!(ready(&t.recheck_pending(t0 + Duration::from_millis(100), 0)).is_empty());
+    let deadline = t.next_deadline(t0).unwrap();
+    assert!(deadline >= t0 + Duration::from_millis(300));
+    let ev = t.recheck_pending(t0 + Duration::from_millis(350), 0);
+    assert_eq!(ready(&ev).len(), 1);
+    assert_eq!(t.pending(), 0);
+    // Nothing new on later looks.
+    assert!(
+        t.reconcile_root(0, t0 + Duration::from_secs(1), 0)
+            .is_empty()
+    );
+    // Rewritten: a new set after a new quiet period.
+    std::fs::write(d.join("a.ply"), b"ply\nmore\n").unwrap();
+    let t1 = t0 + Duration::from_secs(2);
+    assert!(ready(&t.reconcile_root(0, t1, 0)).is_empty());
+    let ev = t.recheck_pending(t1 + Duration::from_millis(400), 0);
+    assert_eq!(ready(&ev).len(), 1);
+}
+
+#[test]
+fn obj_waits_for_missing_texture_and_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    copy_james(d);
+    std::fs::remove_file(d.join("james.jpg")).unwrap();
+    let mut t = tracker(d, 10, None);
+    let t0 = Instant::now();
+    assert!(t.reconcile_root(0, t0, 0).is_empty());
+    let ev = t.recheck_pending(t0 + Duration::from_secs(6), 0);
+    assert!(
+        matches!(&ev[..], [Event::Waiting { reason, .. }] if reason.contains("james.jpg")),
+        "{ev:?}"
+    );
+    // The texture arrives: ready after the quiet period, with all three members.
+    std::fs::write(
+        d.join("james.jpg"),
+        std::fs::read(Path::new(JAMES).join("james.jpg")).unwrap(),
+    )
+    .unwrap();
+    let t1 = t0 + Duration::from_secs(7);
+    assert!(ready(&t.reconcile_root(0, t1, 0)).is_empty());
+    let ev = t.recheck_pending(t1 + Duration::from_millis(20), 0);
+    let r = ready(&ev);
+    assert_eq!(r.len(), 1);
+    assert_eq!(r[0].inputs.len(), 3);
+}
+
+#[test]
+fn marker_makes_ready_without_quiet_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("s.ply"), b"ply\n").unwrap();
+    let mut t = tracker(d, 3_600_000, Some("{stem}.done"));
+    let t0 = Instant::now();
+    assert!(ready(&t.reconcile_root(0, t0, 0)).is_empty());
+    std::fs::write(d.join("s.done"), b"").unwrap();
+    assert_eq!(ready(&t.reconcile_root(0, t0, 0)).len(), 1);
+}
+
+#[test]
+fn renamed_copy_has_the_same_set_hash() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    copy_james(&d.join("one"));
+    copy_james(&d.join("two"));
+    std::fs::rename(d.join("two/james.obj"), d.join("two/renamed.obj")).unwrap();
+    let mut t = tracker(d, 1, None);
+    let t0 = Instant::now();
+    t.reconcile_root(0, t0, 0);
+    let ev = t.recheck_pending(t0 + Duration::from_millis(5), 0);
+    let r = ready(&ev);
+    assert_eq!(r.len(), 2);
+    assert_eq!(r[0].set_hash, r[1].set_hash);
+    assert_ne!(r[0].rel_path, r[1].rel_path);
+}
+
+#[test]
+fn known_sets_are_not_hashed_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("a.ply"), b"ply\n").unwrap();
+    let sig = StatSig::of(&d.join("a.ply")).unwrap();
+    let mut known = Known::new();
+    known.insert(
+        (d.to_string_lossy().into_owned(), "a.ply".into()),
+        vec![("a.ply".into(), sig.size, sig.mtime_ns, sig.ino)],
+    );
+    let mut t = Tracker::new(
+        vec![root(d, 1, None)],
+        known,
+        Duration::from_secs(5),
+        Duration::from_secs(5),
+    );
+    let t0 = Instant::now();
+    t.reconcile_root(0, t0, 0);
+    assert!(ready(&t.recheck_pending(t0 + Duration::from_millis(5), 0)).is_empty());
+    assert_eq!(t.pending(), 0);
+}
+
+#[test]
+fn ignored_and_hidden_files_are_not_candidates() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join(".staging")).unwrap();
+    std::fs::create_dir(d.join("sub")).unwrap();
+    for f in [
+        "x.ply.part",
+        ".y.ply",
+        ".staging/z.ply",
+        "sub/ok.ply",
+        "notes.txt",
+    ] {
+        std::fs::write(d.join(f), b"ply\n").unwrap();
+    }
+    let t = tracker(d, 1, None);
+    assert_eq!(t.walk(0), [d.join("sub/ok.ply")]);
+}

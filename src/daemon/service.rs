@@ -1,0 +1,713 @@
+//! The service loop: one tokio task (current-thread runtime) that owns the database
+//! connection and the tracker, and reacts to signals, file-event hints, job results and
+//! its own timers. Jobs run on their own OS threads ([`super::worker`]).
+//!
+//! Start-up: lock the state dir, migrate, requeue jobs left running (not counted), delete
+//! stale temporaries, set the watches, walk every root once, then READY=1.
+//! Events are hints: any event in a root schedules a full walk of it (after 100 ms, to
+//! gather a burst); each root is also walked every `rescan_secs` (or `poll_secs`), after a
+//! watcher error or queue overflow, and when the root itself was replaced or remounted.
+//! SIGTERM/SIGINT: STOPPING=1, stop claiming, give running jobs `drain_timeout_secs`,
+//! then put the rest back in the queue (not counted), checkpoint the WAL and return.
+
+use super::glob::Filter;
+use super::scanset::{Event, Known, RootSpec, Tracker, job_key};
+use super::systemd::{Notifier, StateLock, free_bytes};
+use super::worker::{self, JobResult, JobSpec, Processor, PublishGate};
+use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
+use crate::recipe::Recipe;
+use crate::store::{
+    ClaimedJob, Enqueued, FinalState, Finish, NewJob, Owner, Store, StoreError, now_ms,
+};
+use std::collections::HashMap;
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+use tokio::sync::mpsc;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ServiceError {
+    #[error("invalid configuration ({origin}):\n  {}", problems.join("\n  "))]
+    Config {
+        origin: ConfigSource,
+        problems: Vec<String>,
+    },
+    #[error("{0}")]
+    Locked(std::io::Error),
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    #[error("{context}: {source}")]
+    Io {
+        context: String,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Hidden knobs for tests; documented as test-only.
+#[derive(Debug, Clone, Default)]
+pub struct TestHooks {
+    /// Sleep at every processing stage (`SCANMILL_TEST_STEP_DELAY_MS`).
+    pub stage_delay: Option<Duration>,
+}
+
+impl TestHooks {
+    pub fn from_env() -> TestHooks {
+        TestHooks {
+            stage_delay: std::env::var("SCANMILL_TEST_STEP_DELAY_MS")
+                .ok()
+                .and_then(|v| v.parse::<u64>().ok())
+                .filter(|&ms| ms > 0)
+                .map(Duration::from_millis),
+        }
+    }
+}
+
+struct RootRuntime {
+    path: PathBuf,
+    output: PathBuf,
+    recipe: Arc<Recipe>,
+    recipe_path: PathBuf,
+    recipe_hash: String,
+    poll: Option<Duration>,
+    watcher: Option<notify::RecommendedWatcher>,
+    identity: Option<(u64, u64)>,
+    walk_due: Instant,
+    overflow: Arc<AtomicBool>,
+}
+
+struct Running {
+    job: ClaimedJob,
+    gate: Arc<PublishGate>,
+    deadline: Instant,
+}
+
+/// The running service's state (everything the loop touches).
+struct Service {
+    config: DaemonConfig,
+    config_hash: String,
+    store: Store,
+    tracker: Tracker,
+    roots: Vec<RootRuntime>,
+    owner: Owner,
+    notifier: Notifier,
+    processor: Processor,
+    hooks: TestHooks,
+    running: HashMap<i64, Running>,
+    results_tx: mpsc::UnboundedSender<(i64, JobResult)>,
+    hints_tx: mpsc::Sender<usize>,
+    last_status: String,
+    paused: Option<String>,
+    stopping: bool,
+    /// Something may be claimable: set by our own writes; other connections' writes are
+    /// seen through `data_version`. Lets an idle daemon skip the queue queries.
+    work_maybe: bool,
+    data_version: i64,
+    next_run_after: Option<i64>,
+    counts: (i64, i64),
+}
+
+const DEBOUNCE: Duration = Duration::from_millis(100);
+const CLAIM_POLL: Duration = Duration::from_secs(1);
+
+fn secs(s: f64) -> Duration {
+    Duration::from_secs_f64(s.max(0.0))
+}
+
+fn root_identity(path: &Path) -> Option<(u64, u64)> {
+    std::fs::metadata(path)
+        .ok()
+        .filter(|m| m.is_dir())
+        .map(|m| (m.dev(), m.ino()))
+}
+
+/// Runs the daemon until SIGTERM/SIGINT. `config` must come from [`DaemonConfig::locate`].
+pub fn run(
+    config: DaemonConfig,
+    origin: ConfigSource,
+    processor: Processor,
+    hooks: TestHooks,
+) -> Result<(), ServiceError> {
+    tracing::info!(config = %origin, version = env!("CARGO_PKG_VERSION"), "scanmill daemon starting");
+    // Make the folders first when asked, so that validation sees them.
+    if config.create_missing_dirs {
+        let dirs = std::iter::once(&config.state_dir)
+            .chain(config.watch.iter().flat_map(|w| [&w.path, &w.output]));
+        for d in dirs {
+            if !d.exists() {
+                std::fs::create_dir_all(d).map_err(|source| ServiceError::Io {
+                    context: format!("create {}", d.display()),
+                    source,
+                })?;
+                tracing::info!("created {}", d.display());
+            }
+        }
+    }
+    let problems = config.validate();
+    if !problems.is_empty() {
+        return Err(ServiceError::Config { origin, problems });
+    }
+    let lock = StateLock::acquire(&config.state_dir).map_err(ServiceError::Locked)?;
+    let mut store = Store::open(&config.database_path())?;
+    let requeued = store.recover_running()?;
+    if requeued > 0 {
+        tracing::warn!(
+            requeued,
+            "jobs left running by a previous process are queued again"
+        );
+    }
+    let mut known = Known::new();
+    for (root, rel, members) in store.known_inputs()? {
+        known.insert((root, rel), members);
+    }
+    let mut roots = Vec::new();
+    let mut specs = Vec::new();
+    let now = Instant::now();
+    for w in &config.watch {
+        let recipe = load_recipe(&w.recipe).map_err(|e| ServiceError::Config {
+            origin: origin.clone(),
+            problems: vec![e.to_string()],
+        })?;
+        let path = absolute(&w.path);
+        let output = absolute(&w.output);
+        let removed = super::publish::clean_staging(&output);
+        if removed > 0 {
+            tracing::info!(removed, output = %output.display(), "removed stale temporaries");
+        }
+        specs.push(RootSpec {
+            path: path.clone(),
+            filter: Filter {
+                include: w.include.clone(),
+                exclude: w.exclude.clone(),
+            },
+            quiet: secs(w.quiet_period_secs),
+            marker: w.marker.clone(),
+        });
+        roots.push(RootRuntime {
+            identity: None,
+            path,
+            output,
+            recipe_hash: recipe.hash(),
+            recipe: Arc::new(recipe),
+            recipe_path: w.recipe.clone(),
+            poll: (w.poll_secs > 0.0).then(|| secs(w.poll_secs)),
+            watcher: None,
+            walk_due: now,
+            overflow: Arc::new(AtomicBool::new(false)),
+        });
+    }
+    let tracker = Tracker::new(
+        specs,
+        known,
+        secs(config.incomplete_report_secs),
+        secs(config.rescan_secs),
+    );
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .map_err(|source| ServiceError::Io {
+            context: "tokio runtime".into(),
+            source,
+        })?;
+    let (results_tx, results_rx) = mpsc::unbounded_channel();
+    let (hints_tx, hints_rx) = mpsc::channel(256);
+    let service = Service {
+        config_hash: config.hash(),
+        config,
+        store,
+        tracker,
+        roots,
+        owner: Owner::current(),
+        notifier: Notifier::from_env(),
+        processor,
+        hooks,
+        running: HashMap::new(),
+        results_tx,
+        hints_tx,
+        last_status: String::new(),
+        paused: None,
+        stopping: false,
+        work_maybe: true,
+        data_version: 0,
+        next_run_after: None,
+        counts: (0, 0),
+    };
+    let result = runtime.block_on(service.main_loop(results_rx, hints_rx));
+    drop(lock);
+    result
+}
+
+impl Service {
+    async fn main_loop(
+        mut self,
+        mut results_rx: mpsc::UnboundedReceiver<(i64, JobResult)>,
+        mut hints_rx: mpsc::Receiver<usize>,
+    ) -> Result<(), ServiceError> {
+        use tokio::signal::unix::{SignalKind, signal};
+        let sig = |k| {
+            signal(k).map_err(|source| ServiceError::Io {
+                context: "signal handler".into(),
+                source,
+            })
+        };
+        let mut sigterm = sig(SignalKind::terminate())?;
+        let mut sigint = sig(SignalKind::interrupt())?;
+        let mut sighup = sig(SignalKind::hangup())?;
+
+        // First reconcile before READY: whatever arrived while we were down is found now.
+        for i in 0..self.roots.len() {
+            self.ensure_watch(i);
+            self.walk_root(i)?;
+        }
+        self.counts = self.store.counts()?;
+        self.notifier.ready(&self.status_line()?);
+        tracing::info!(roots = self.roots.len(), "ready");
+        let watchdog = self.notifier.watchdog().map(|w| w / 2);
+
+        loop {
+            let version = self.store.data_version()?;
+            let due = self.next_run_after.is_some_and(|t| t <= now_ms());
+            if self.work_maybe || due || version != self.data_version || self.paused.is_some() {
+                self.data_version = version;
+                self.work_maybe = false;
+                self.claim_jobs()?;
+                self.next_run_after = self.store.next_run_after()?;
+                self.counts = self.store.counts()?;
+            }
+            self.check_timeouts()?;
+            self.update_status()?;
+            self.notifier.watchdog_ping();
+
+            let now = Instant::now();
+            let mut next = now + CLAIM_POLL;
+            for r in &self.roots {
+                next = next.min(r.walk_due);
+            }
+            if let Some(d) = self.tracker.next_deadline(now) {
+                next = next.min(d);
+            }
+            for r in self.running.values() {
+                next = next.min(r.deadline);
+            }
+            if let Some(w) = watchdog {
+                next = next.min(now + w);
+            }
+            if let Some(t) = self.next_run_after {
+                let wait = Duration::from_millis((t - now_ms()).max(0) as u64);
+                next = next.min(now + wait);
+            }
+            tokio::select! {
+                _ = sigterm.recv() => { tracing::info!("SIGTERM: stopping"); break; }
+                _ = sigint.recv() => { tracing::info!("SIGINT: stopping"); break; }
+                _ = sighup.recv() => {
+                    tracing::warn!("SIGHUP: live reload is not supported; restart the service to apply a new configuration");
+                }
+                Some(first) = hints_rx.recv() => {
+                    // Gather the burst: one walk per root covers every event in it.
+                    let due = Instant::now() + DEBOUNCE;
+                    let mut i = first;
+                    loop {
+                        if self.roots[i].walk_due > due {
+                            self.roots[i].walk_due = due;
+                        }
+                        match hints_rx.try_recv() {
+                            Ok(next) => i = next,
+                            Err(_) => break,
+                        }
+                    }
+                }
+                Some((id, result)) = results_rx.recv() => self.job_finished(id, result)?,
+                _ = tokio::time::sleep_until(next.into()) => {}
+            }
+            let now = Instant::now();
+            for i in 0..self.roots.len() {
+                if self.roots[i].overflow.swap(false, Ordering::SeqCst) {
+                    tracing::warn!(root = %self.roots[i].path.display(), "event queue overflow or watcher error: full rescan");
+                    self.roots[i].walk_due = now;
+                }
+                if self.roots[i].walk_due <= now {
+                    self.walk_root(i)?;
+                }
+            }
+            let events = self.tracker.recheck_pending(now, now_ms());
+            self.handle_events(events)?;
+        }
+        self.shutdown(&mut results_rx, &mut sigterm, &mut sigint)
+            .await
+    }
+
+    /// Sets up (or re-creates) the file watch of a root that exists; falls back to
+    /// polling when the watch cannot be set (e.g. inotify limits).
+    fn ensure_watch(&mut self, i: usize) {
+        let identity = root_identity(&self.roots[i].path);
+        let r = &mut self.roots[i];
+        if identity != r.identity {
+            if r.identity.is_some() {
+                tracing::warn!(root = %r.path.display(), "watched folder replaced, remounted or gone");
+                self.tracker.forget_root(i);
+            }
+            r.watcher = None;
+            r.identity = identity;
+        }
+        if r.identity.is_none() {
+            tracing::warn!(root = %r.path.display(), "watched folder is unavailable; will retry");
+            return;
+        }
+        if r.poll.is_some() || r.watcher.is_some() {
+            return;
+        }
+        use notify::Watcher;
+        let tx = self.hints_tx.clone();
+        let overflow = r.overflow.clone();
+        let handler = move |event: notify::Result<notify::Event>| {
+            use notify::event::{AccessKind, AccessMode, EventKind};
+            let rescan = match &event {
+                // Our own reads (walking, hashing) raise open/access/close-nowrite events;
+                // they change nothing and must not schedule another walk (a feedback loop).
+                Ok(e)
+                    if matches!(e.kind, EventKind::Access(a) if a != AccessKind::Close(AccessMode::Write))
+                        && !e.need_rescan() =>
+                {
+                    return;
+                }
+                Ok(e) => e.need_rescan(),
+                Err(_) => true,
+            };
+            // Every event is only a hint that something in the root changed.
+            // A full channel is fine: the hints in it already guarantee a later walk.
+            if rescan {
+                overflow.store(true, Ordering::SeqCst);
+            }
+            let _ = tx.try_send(i);
+        };
+        let created = notify::recommended_watcher(handler).and_then(|mut w| {
+            w.watch(&r.path, notify::RecursiveMode::Recursive)?;
+            Ok(w)
+        });
+        match created {
+            Ok(w) => r.watcher = Some(w),
+            Err(e) => {
+                let hint = if matches!(e.kind, notify::ErrorKind::MaxFilesWatch)
+                    || e.to_string().contains("No space left")
+                {
+                    " (inotify limit reached: raise fs.inotify.max_user_watches, see systemd/60-scanmill.conf)"
+                } else {
+                    ""
+                };
+                tracing::error!(root = %r.path.display(), "cannot watch: {e}{hint}; polling every 10 s instead");
+                r.poll = Some(Duration::from_secs(10));
+            }
+        }
+    }
+
+    fn walk_root(&mut self, i: usize) -> Result<(), ServiceError> {
+        self.ensure_watch(i);
+        let interval = self.roots[i].poll.unwrap_or(secs(self.config.rescan_secs));
+        self.roots[i].walk_due = Instant::now() + interval;
+        if self.roots[i].identity.is_none() {
+            return Ok(());
+        }
+        let events = self.tracker.reconcile_root(i, Instant::now(), now_ms());
+        self.handle_events(events)
+    }
+
+    fn handle_events(&mut self, events: Vec<Event>) -> Result<(), ServiceError> {
+        for e in events {
+            match e {
+                Event::Ready(set) => {
+                    let r = &self.roots[set.root_index];
+                    let root = r.path.to_string_lossy().into_owned();
+                    let job = NewJob {
+                        job_key: job_key(&set.set_hash, &r.recipe_hash),
+                        set_hash: set.set_hash.clone(),
+                        root: root.clone(),
+                        rel_path: set.rel_path.clone(),
+                        output_root: r.output.to_string_lossy().into_owned(),
+                        recipe_path: r.recipe_path.to_string_lossy().into_owned(),
+                        recipe_hash: r.recipe_hash.clone(),
+                        recipe_json: r.recipe.resolved_json().to_string(),
+                        config_hash: self.config_hash.clone(),
+                        max_attempts: self.config.max_attempts,
+                        inputs: set.inputs.clone(),
+                    };
+                    self.work_maybe = true;
+                    match self.store.enqueue(&job)? {
+                        Enqueued::New(id) => {
+                            tracing::info!(job_id = id, input = %set.rel_path, "queued")
+                        }
+                        Enqueued::Revived(id) => {
+                            tracing::info!(job_id = id, input = %set.rel_path, "input is back: queued again")
+                        }
+                        Enqueued::Existing { id, state } => tracing::info!(
+                            job_id = id,
+                            input = %set.rel_path,
+                            state,
+                            "same content and recipe as an existing job: not processed again"
+                        ),
+                    }
+                    let members = set
+                        .inputs
+                        .iter()
+                        .map(|m| (m.rel_path.clone(), m.size, m.mtime_ns, m.ino))
+                        .collect();
+                    self.tracker.remember(&root, &set.rel_path, members);
+                }
+                Event::Waiting {
+                    root_index,
+                    rel_path,
+                    reason,
+                    first_seen_ms,
+                } => {
+                    let root = self.roots[root_index].path.to_string_lossy().into_owned();
+                    self.store
+                        .set_waiting(&root, &rel_path, &reason, first_seen_ms)?;
+                }
+                Event::NotWaiting {
+                    root_index,
+                    rel_path,
+                } => {
+                    let root = self.roots[root_index].path.to_string_lossy().into_owned();
+                    self.store.clear_waiting(&root, &rel_path)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Free-disk floor on every output file system; claiming pauses below it.
+    fn disk_ok(&mut self) -> bool {
+        let floor = self.config.min_free_disk_mb.saturating_mul(1 << 20);
+        let low = self.roots.iter().find_map(|r| {
+            free_bytes(&r.output).filter(|&f| f < floor).map(|f| {
+                format!(
+                    "paused: low disk on {} ({} MiB free)",
+                    r.output.display(),
+                    f >> 20
+                )
+            })
+        });
+        if low != self.paused {
+            match &low {
+                Some(m) => tracing::error!("{m}"),
+                None => tracing::info!("disk space back above the floor: resuming"),
+            }
+            self.paused = low;
+        }
+        self.paused.is_none()
+    }
+
+    fn claim_jobs(&mut self) -> Result<(), ServiceError> {
+        while !self.stopping && self.running.len() < self.config.workers && self.disk_ok() {
+            let Some(job) = self.store.claim(&self.owner)? else {
+                break;
+            };
+            let recipe_source = self
+                .roots
+                .iter()
+                .find(|r| r.recipe_path.to_string_lossy() == job.recipe_path)
+                .map(|r| (r.recipe.clone(), r.recipe_path.clone()));
+            let (recipe, recipe_path) = match recipe_source {
+                Some(x) => x,
+                None => match load_recipe(Path::new(&job.recipe_path)) {
+                    Ok(r) => (Arc::new(r), PathBuf::from(&job.recipe_path)),
+                    Err(e) => {
+                        let f = Finish::Failed {
+                            kind: "recipe".into(),
+                            message: e.to_string(),
+                            transient: false,
+                        };
+                        self.store.finish(&job, &f, self.retry(), 0.0)?;
+                        continue;
+                    }
+                },
+            };
+            let gate = Arc::new(PublishGate::default());
+            let spec = JobSpec {
+                job: job.clone(),
+                recipe,
+                recipe_path,
+                config_hash: self.config_hash.clone(),
+                owner: self.owner.clone(),
+                max_input_bytes: self.config.max_input_bytes,
+                processor: self.processor.clone(),
+                gate: gate.clone(),
+                stage_delay: self.hooks.stage_delay,
+            };
+            let tx = self.results_tx.clone();
+            let id = job.id;
+            tracing::info!(job_id = id, input = %job.rel_path, attempt = job.attempt, "running");
+            let spawned = std::thread::Builder::new()
+                .name(format!("scanmill-job-{id}"))
+                .spawn(move || {
+                    let result = worker::run(spec);
+                    let _ = tx.send((id, result));
+                });
+            if let Err(e) = spawned {
+                let f = Finish::Failed {
+                    kind: "spawn".into(),
+                    message: e.to_string(),
+                    transient: true,
+                };
+                self.store.finish(&job, &f, self.retry(), 0.0)?;
+                break;
+            }
+            self.running.insert(
+                id,
+                Running {
+                    job,
+                    gate,
+                    deadline: Instant::now() + secs(self.config.job_timeout_secs),
+                },
+            );
+        }
+        Ok(())
+    }
+
+    fn retry(&self) -> (f64, f64) {
+        (self.config.retry_base_secs, self.config.retry_max_secs)
+    }
+
+    fn job_finished(&mut self, id: i64, result: JobResult) -> Result<(), ServiceError> {
+        let Some(running) = self.running.remove(&id) else {
+            // An abandoned job's thread came back: already recorded.
+            return Ok(());
+        };
+        self.work_maybe = true;
+        match result {
+            JobResult::Finished { finish, wall_ms } => {
+                let state = self
+                    .store
+                    .finish(&running.job, &finish, self.retry(), wall_ms)?;
+                match (&finish, state) {
+                    (Finish::Done { output_dir, .. }, _) => {
+                        tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
+                    }
+                    (Finish::Failed { kind, message, .. }, s) => {
+                        tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {message}")
+                    }
+                    (Finish::Interrupted { .. }, _) => {}
+                }
+            }
+            JobResult::Abandoned => {
+                let f = Finish::Interrupted {
+                    reason: "abandoned".into(),
+                };
+                self.store.finish(&running.job, &f, self.retry(), 0.0)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn check_timeouts(&mut self) -> Result<(), ServiceError> {
+        let now = Instant::now();
+        let late: Vec<i64> = self
+            .running
+            .iter()
+            .filter(|(_, r)| r.deadline <= now)
+            .map(|(id, _)| *id)
+            .collect();
+        for id in late {
+            let r = &self.running[&id];
+            if !r.gate.abandon() {
+                continue; // publishing right now: its result comes in a moment
+            }
+            let r = self.running.remove(&id).expect("present");
+            self.work_maybe = true;
+            let f = Finish::Failed {
+                kind: "timeout".into(),
+                message: format!(
+                    "ran longer than job_timeout_secs = {}; abandoned (its thread finishes in the background and cannot publish)",
+                    self.config.job_timeout_secs
+                ),
+                transient: true,
+            };
+            let state =
+                self.store
+                    .finish(&r.job, &f, self.retry(), self.config.job_timeout_secs * 1e3)?;
+            tracing::error!(job_id = id, state = ?state, "job timed out");
+        }
+        Ok(())
+    }
+
+    fn status_line(&self) -> Result<String, ServiceError> {
+        let (queued, running) = self.counts;
+        let state = if self.stopping {
+            "draining"
+        } else if let Some(p) = &self.paused {
+            p.as_str()
+        } else if running > 0 {
+            "working"
+        } else {
+            "idle"
+        };
+        Ok(format!(
+            "{state}; queue={queued}; running={running}; waiting={}",
+            self.tracker.pending()
+        ))
+    }
+
+    fn update_status(&mut self) -> Result<(), ServiceError> {
+        let line = self.status_line()?;
+        if line != self.last_status {
+            self.notifier.status(&line);
+            tracing::debug!("{line}");
+            self.last_status = line;
+        }
+        Ok(())
+    }
+
+    async fn shutdown(
+        mut self,
+        results_rx: &mut mpsc::UnboundedReceiver<(i64, JobResult)>,
+        sigterm: &mut tokio::signal::unix::Signal,
+        sigint: &mut tokio::signal::unix::Signal,
+    ) -> Result<(), ServiceError> {
+        self.stopping = true;
+        self.notifier.stopping();
+        for r in &mut self.roots {
+            r.watcher = None;
+        }
+        let deadline = Instant::now() + secs(self.config.drain_timeout_secs);
+        if !self.running.is_empty() {
+            tracing::info!(running = self.running.len(), "waiting for running jobs");
+        }
+        while !self.running.is_empty() {
+            tokio::select! {
+                Some((id, result)) = results_rx.recv() => self.job_finished(id, result)?,
+                _ = tokio::time::sleep_until(deadline.into()) => break,
+                _ = sigterm.recv() => { tracing::warn!("second signal: not waiting any longer"); break; }
+                _ = sigint.recv() => { tracing::warn!("second signal: not waiting any longer"); break; }
+            }
+            self.notifier.watchdog_ping();
+        }
+        // Jobs still running go back to the queue; one that is publishing right now is
+        // let finish (a rename and an fsync).
+        let ids: Vec<i64> = self.running.keys().copied().collect();
+        for id in ids {
+            if self.running[&id].gate.abandon() {
+                let r = self.running.remove(&id).expect("present");
+                let f = Finish::Interrupted {
+                    reason: "daemon stopped before the job finished".into(),
+                };
+                let state = self.store.finish(&r.job, &f, self.retry(), 0.0)?;
+                debug_assert_eq!(state, FinalState::Requeued);
+                tracing::warn!(
+                    job_id = id,
+                    "not finished before the stop deadline: queued again"
+                );
+            }
+        }
+        let publishing_deadline = Instant::now() + Duration::from_secs(30);
+        while !self.running.is_empty() {
+            tokio::select! {
+                Some((id, result)) = results_rx.recv() => self.job_finished(id, result)?,
+                _ = tokio::time::sleep_until(publishing_deadline.into()) => break,
+            }
+        }
+        self.store.checkpoint();
+        tracing::info!("stopped");
+        Ok(())
+    }
+}

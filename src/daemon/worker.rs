@@ -1,0 +1,355 @@
+//! One job on one blocking thread: check the inputs are still the ones queued, run the
+//! recipe into a staging folder, check again, write the provenance sidecar, publish.
+//!
+//! The job runs on its own OS thread (not an async worker), inside `catch_unwind`, so a
+//! panicking job is recorded as failed and the service goes on. A thread cannot be killed:
+//! a job past its time limit is *abandoned* instead. Its [`PublishGate`] is closed by the
+//! service, and the worker checks the gate right before the one rename that makes the
+//! result visible, so an abandoned job can never publish; it only finishes its computation
+//! in the background and removes its staging folder.
+
+use super::publish::{self, Published, SIDECAR_SUFFIX, STAGING_DIR};
+use super::scanset::StatSig;
+use crate::recipe::Recipe;
+use crate::recipe::runner::Progress;
+use crate::report::Report;
+use crate::store::{ClaimedJob, Finish, Owner, StepRow, now_ms};
+use serde_json::json;
+use std::panic::AssertUnwindSafe;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::time::{Duration, Instant};
+
+/// Why processing failed, and whether trying again could help.
+#[derive(Debug, Clone)]
+pub struct ProcessFailure {
+    pub kind: String,
+    pub message: String,
+    pub transient: bool,
+}
+
+/// Runs a recipe on one scan, writing the result files into `out_dir`.
+pub type Processor = Arc<
+    dyn Fn(&Path, &Recipe, &Path, &Path, &dyn Progress) -> Result<Report, ProcessFailure>
+        + Send
+        + Sync,
+>;
+
+const RUNNING: u8 = 0;
+const PUBLISHING: u8 = 1;
+const ABANDONED: u8 = 2;
+
+/// Decides, once, whether a job publishes or is abandoned.
+#[derive(Debug, Default)]
+pub struct PublishGate(AtomicU8);
+
+impl PublishGate {
+    /// The worker asks to publish; false if the job was abandoned.
+    pub fn begin_publish(&self) -> bool {
+        self.0
+            .compare_exchange(RUNNING, PUBLISHING, Ordering::SeqCst, Ordering::SeqCst)
+            .is_ok()
+    }
+    /// The service abandons the job; false if it is already publishing (then wait for it).
+    pub fn abandon(&self) -> bool {
+        self.0
+            .compare_exchange(RUNNING, ABANDONED, Ordering::SeqCst, Ordering::SeqCst)
+            .is_ok()
+    }
+}
+
+/// Everything a job needs, owned, so it can move to its thread.
+pub struct JobSpec {
+    pub job: ClaimedJob,
+    pub recipe: Arc<Recipe>,
+    pub recipe_path: PathBuf,
+    pub config_hash: String,
+    pub owner: Owner,
+    pub max_input_bytes: u64,
+    pub processor: Processor,
+    pub gate: Arc<PublishGate>,
+    /// Test-only (`SCANMILL_TEST_STEP_DELAY_MS`): sleep this long at every stage, so that
+    /// tests can interrupt a job deterministically.
+    pub stage_delay: Option<Duration>,
+}
+
+/// What a finished thread reports.
+#[derive(Debug)]
+pub enum JobResult {
+    Finished {
+        finish: Finish,
+        wall_ms: f64,
+    },
+    /// The gate was closed (timeout or shutdown); nothing was published.
+    Abandoned,
+}
+
+struct JobProgress {
+    job_id: i64,
+    delay: Option<Duration>,
+}
+
+impl Progress for JobProgress {
+    fn stage(&self, index: usize, total: usize, name: &str) {
+        tracing::debug!(job_id = self.job_id, index, total, stage = name, "stage");
+        if let Some(d) = self.delay {
+            std::thread::sleep(d);
+        }
+    }
+}
+
+fn failure(kind: &str, message: impl Into<String>, transient: bool) -> Finish {
+    Finish::Failed {
+        kind: kind.into(),
+        message: message.into(),
+        transient,
+    }
+}
+
+/// Runs the job to its end. Never panics.
+pub fn run(spec: JobSpec) -> JobResult {
+    let start = Instant::now();
+    let span = tracing::info_span!("job", job_id = spec.job.id, input = %spec.job.rel_path, attempt = spec.job.attempt);
+    let _guard = span.enter();
+    let staging = Path::new(&spec.job.output_root)
+        .join(STAGING_DIR)
+        .join(format!(
+            "job{}-g{}-a{}-{}",
+            spec.job.id,
+            spec.job.generation,
+            spec.job.attempt,
+            std::process::id()
+        ));
+    let outcome = std::panic::catch_unwind(AssertUnwindSafe(|| run_inner(&spec, &staging)));
+    // Whatever happened, nothing of this attempt stays in staging.
+    if staging.exists()
+        && let Err(e) = std::fs::remove_dir_all(&staging)
+    {
+        tracing::warn!("cannot remove {}: {e}", staging.display());
+    }
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    match outcome {
+        Ok(Some(finish)) => JobResult::Finished { finish, wall_ms },
+        Ok(None) => JobResult::Abandoned,
+        Err(panic) => {
+            let message = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            tracing::error!("job panicked: {message}");
+            JobResult::Finished {
+                finish: failure("panic", format!("internal error (panic): {message}"), false),
+                wall_ms,
+            }
+        }
+    }
+}
+
+/// Checks every input member is still the file that was queued.
+fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
+    let root = Path::new(&job.root);
+    for m in &job.inputs {
+        let path = root.join(&m.rel_path);
+        match StatSig::of(&path) {
+            Ok(s) if s.size == m.size && s.mtime_ns == m.mtime_ns && s.ino == m.ino => {}
+            Ok(_) => {
+                return Err(boxed_failure(
+                    "input_changed",
+                    format!(
+                        "{} changed after it was queued; the new version is a new job",
+                        path.display()
+                    ),
+                    false,
+                ));
+            }
+            Err(e) => {
+                return Err(boxed_failure(
+                    "input_vanished",
+                    format!("{}: {e}", path.display()),
+                    false,
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
+    let job = &spec.job;
+    if spec.recipe.hash() != job.recipe_hash {
+        return Some(failure(
+            "recipe_changed",
+            format!(
+                "{} changed since this job was queued; the scan is queued again under the new recipe",
+                spec.recipe_path.display()
+            ),
+            false,
+        ));
+    }
+    if let Err(f) = check_inputs(job) {
+        return Some(*f);
+    }
+    let total: u64 = job.inputs.iter().map(|m| m.size).sum();
+    if total > spec.max_input_bytes {
+        return Some(failure(
+            "too_large",
+            format!(
+                "input set is {total} bytes, above max_input_bytes = {}",
+                spec.max_input_bytes
+            ),
+            false,
+        ));
+    }
+    let primary = Path::new(&job.root).join(&job.rel_path);
+    let stem = output_stem(&primary);
+    let scan_dir = staging.join(&stem);
+    if let Err(e) = std::fs::create_dir_all(&scan_dir) {
+        return Some(failure(
+            "output",
+            format!("{}: {e}", scan_dir.display()),
+            true,
+        ));
+    }
+    let started_ms = now_ms();
+    let progress = JobProgress {
+        job_id: job.id,
+        delay: spec.stage_delay,
+    };
+    let report = match (spec.processor)(
+        &primary,
+        &spec.recipe,
+        &spec.recipe_path,
+        &scan_dir,
+        &progress,
+    ) {
+        Ok(r) => r,
+        Err(f) => {
+            // An input that vanished or changed while being read is not the scan's fault.
+            if let Err(changed) = check_inputs(job) {
+                return Some(*changed);
+            }
+            return Some(Finish::Failed {
+                kind: f.kind,
+                message: f.message,
+                transient: f.transient,
+            });
+        }
+    };
+    if let Err(changed) = check_inputs(job) {
+        return Some(*changed);
+    }
+    let report_value = serde_json::to_value(&report).unwrap_or_default();
+    let sidecar = json!({
+        "job_id": job.id,
+        "job_key": job.job_key,
+        "generation": job.generation,
+        "attempt": job.attempt,
+        "set_hash": job.set_hash,
+        "inputs": job.inputs.iter().map(|m| json!({
+            "path": Path::new(&job.root).join(&m.rel_path),
+            "role": m.role, "bytes": m.size, "mtime_ns": m.mtime_ns, "sha256": m.sha256,
+        })).collect::<Vec<_>>(),
+        "recipe": { "path": spec.recipe_path, "hash": job.recipe_hash, "resolved": spec.recipe.resolved_json() },
+        "config_hash": spec.config_hash,
+        "scanmill_version": spec.owner.app_version,
+        "host": spec.owner.host,
+        "daemon": spec.owner.id,
+        "started": crate::store::query::iso_time(started_ms),
+        "finished": crate::store::query::iso_time(now_ms()),
+        "report": report_value,
+    });
+    let sidecar_path = scan_dir.join(format!("{stem}{SIDECAR_SUFFIX}"));
+    let written = serde_json::to_vec_pretty(&sidecar)
+        .map_err(std::io::Error::other)
+        .and_then(|bytes| std::fs::write(&sidecar_path, bytes))
+        .and_then(|_| publish::sync_tree(&scan_dir));
+    if let Err(e) = written {
+        return Some(failure(
+            "output",
+            format!("{}: {e}", scan_dir.display()),
+            true,
+        ));
+    }
+    if !spec.gate.begin_publish() {
+        tracing::warn!("abandoned before publishing; result discarded");
+        return None;
+    }
+    let dest = publish::destination(Path::new(&job.output_root), &job.rel_path, &stem);
+    let final_dir =
+        match publish::publish_dir(&scan_dir, &dest, &stem, &job.job_key, job.generation) {
+            Ok(Published::New(d)) => d,
+            Ok(Published::AlreadyThere(d)) => {
+                tracing::info!(
+                    "{} already holds this job's result (published before a restart)",
+                    d.display()
+                );
+                d
+            }
+            Err(e) => {
+                return Some(failure(
+                    "output",
+                    format!("publish to {}: {e}", dest.display()),
+                    true,
+                ));
+            }
+        };
+    tracing::info!(output = %final_dir.display(), ms = report.total_ms, "published");
+    let outputs = report
+        .output
+        .files
+        .iter()
+        .map(|f| {
+            let name = f.path.file_name().map(PathBuf::from).unwrap_or_default();
+            (
+                final_dir.join(name).to_string_lossy().into_owned(),
+                f.bytes,
+                f.sha256.clone(),
+            )
+        })
+        .collect();
+    let steps = report
+        .steps
+        .iter()
+        .map(|s| StepRow {
+            kind: s.kind.clone(),
+            wall_ms: s.wall_ms,
+            vertices_before: s.vertices_before as i64,
+            vertices_after: s.vertices_after as i64,
+            faces_before: s.faces_before as i64,
+            faces_after: s.faces_after as i64,
+            figures_json: s.figures.to_string(),
+        })
+        .collect();
+    Some(Finish::Done {
+        output_dir: final_dir.to_string_lossy().into_owned(),
+        outputs,
+        report_json: report_value.to_string(),
+        counts: [
+            report.input.counts.vertices as i64,
+            report.input.counts.faces as i64,
+            report.output.counts.vertices as i64,
+            report.output.counts.faces as i64,
+        ],
+        process_ms: report.total_ms,
+        steps,
+    })
+}
+
+/// The output base name: the input's name without `.gz` and its mesh extension.
+pub fn output_stem(input: &Path) -> String {
+    let name = input
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scan".into());
+    let name = name.strip_suffix(".gz").unwrap_or(&name);
+    match name.rsplit_once('.') {
+        Some((stem, _)) if !stem.is_empty() => stem.to_string(),
+        _ => name.to_string(),
+    }
+}
+
+fn boxed_failure(kind: &str, message: impl Into<String>, transient: bool) -> Box<Finish> {
+    Box::new(failure(kind, message, transient))
+}

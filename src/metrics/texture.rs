@@ -1,0 +1,265 @@
+//! Texture deviation: what a person sees as a smeared or shifted texture. At sample points
+//! on the result, the colour the result's own texture coordinates pick from its texture is
+//! compared with the colour the reference's texture coordinates pick at the closest point of
+//! the reference (barycentric texture coordinates, bilinear lookup).
+//!
+//! Conventions: OBJ `vt` has its origin at the bottom left (data/SOURCES.md), so image row
+//! = (1 − v) · height. Coordinates outside [0,1] wrap (the OBJ/MTL default of repeating
+//! textures). The difference of two colours is the RMS over the R, G, B channels, in 0..255
+//! units, so a uniform shift of k levels in every channel reads k.
+
+use super::Summary;
+use super::surface::{Closest, SurfacePoint};
+use crate::mesh::Mesh;
+use glam::{DVec2, DVec3};
+use image::RgbImage;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "status", rename_all = "kebab-case")]
+pub enum TextureDeviation {
+    Measured {
+        /// Samples where both sides had texture coordinates and a texture.
+        samples: usize,
+        mean: f64,
+        rms: f64,
+        p99: f64,
+        max: f64,
+    },
+    Skipped {
+        reason: String,
+    },
+}
+
+/// Decoded texture images by path, decoded once (RGB8), shared by later comparisons.
+#[derive(Default)]
+pub struct TextureCache {
+    images: HashMap<PathBuf, Result<Arc<RgbImage>, String>>,
+}
+
+impl TextureCache {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The decoded image, or why it could not be read.
+    pub fn get(&mut self, path: &Path) -> Result<Arc<RgbImage>, String> {
+        self.images
+            .entry(path.to_path_buf())
+            .or_insert_with(|| {
+                image::ImageReader::open(path)
+                    .map_err(|e| e.to_string())
+                    .and_then(|r| r.with_guessed_format().map_err(|e| e.to_string()))
+                    .and_then(|r| r.decode().map_err(|e| e.to_string()))
+                    .map(|img| Arc::new(img.to_rgb8()))
+                    .map_err(|e| format!("{}: {e}", path.display()))
+            })
+            .clone()
+    }
+
+    /// One image per material of `mesh` (`None` where a material has no texture).
+    fn material_images(&mut self, mesh: &Mesh) -> Result<Vec<Option<Arc<RgbImage>>>, String> {
+        mesh.materials
+            .iter()
+            .map(|m| {
+                m.diffuse_texture
+                    .as_ref()
+                    .map(|t| self.get(&t.path))
+                    .transpose()
+            })
+            .collect()
+    }
+}
+
+/// Bilinear lookup with wrap-around; `uv` in OBJ convention (v up).
+pub fn bilinear(image: &RgbImage, uv: DVec2) -> DVec3 {
+    let (w, h) = (image.width() as i64, image.height() as i64);
+    if w == 0 || h == 0 {
+        return DVec3::ZERO;
+    }
+    let x = uv.x.rem_euclid(1.0) * w as f64 - 0.5;
+    let y = (1.0 - uv.y.rem_euclid(1.0)) * h as f64 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let texel = |i: i64, j: i64| {
+        let p = image
+            .get_pixel(i.rem_euclid(w) as u32, j.rem_euclid(h) as u32)
+            .0;
+        DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+    };
+    let (i, j) = (x0 as i64, y0 as i64);
+    let top = texel(i, j) * (1.0 - fx) + texel(i + 1, j) * fx;
+    let bottom = texel(i, j + 1) * (1.0 - fx) + texel(i + 1, j + 1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// The colour a mesh shows at a surface point, if that triangle is textured.
+fn colour_at(mesh: &Mesh, images: &[Option<Arc<RgbImage>>], at: &SurfacePoint) -> Option<DVec3> {
+    let t = at.triangle as usize;
+    let image = images.get(mesh.triangle_material(t) as usize)?.as_ref()?;
+    let [a, b, c] = mesh.triangles[t];
+    let uv = mesh.wedge_texcoord(a)? * at.bary.x
+        + mesh.wedge_texcoord(b)? * at.bary.y
+        + mesh.wedge_texcoord(c)? * at.bary.z;
+    Some(bilinear(image, uv))
+}
+
+fn textured(mesh: &Mesh) -> bool {
+    mesh.has_texcoords() && mesh.materials.iter().any(|m| m.diffuse_texture.is_some())
+}
+
+/// Texture deviation from the result's samples and their closest reference points (the
+/// queries the surface distance made already).
+pub fn deviation_with(
+    result: &Mesh,
+    reference: &Mesh,
+    samples: &[SurfacePoint],
+    closest: &[Closest],
+    cache: &mut TextureCache,
+) -> TextureDeviation {
+    let skipped = |reason: &str| TextureDeviation::Skipped {
+        reason: reason.to_string(),
+    };
+    if !textured(result) {
+        return skipped("the result has no textured material with texture coordinates");
+    }
+    if !textured(reference) {
+        return skipped("the reference has no textured material with texture coordinates");
+    }
+    let images = match (
+        cache.material_images(result),
+        cache.material_images(reference),
+    ) {
+        (Ok(a), Ok(b)) => (a, b),
+        (Err(e), _) | (_, Err(e)) => return skipped(&format!("texture not readable: {e}")),
+    };
+    let differences: Vec<f64> = samples
+        .par_iter()
+        .zip(closest.par_iter())
+        .filter_map(|(s, c)| {
+            let mine = colour_at(result, &images.0, s)?;
+            let theirs = colour_at(reference, &images.1, &c.on)?;
+            Some(((mine - theirs).length_squared() / 3.0).sqrt())
+        })
+        .collect();
+    if differences.is_empty() {
+        return skipped("no sample fell on textured triangles of both meshes");
+    }
+    let s = Summary::of(&differences);
+    TextureDeviation::Measured {
+        samples: s.count,
+        mean: s.mean,
+        rms: s.rms,
+        p99: s.p99,
+        max: s.max,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::grid;
+    use crate::mesh::{Material, Texture};
+    use crate::metrics::surface::{SurfaceIndex, sample_surface};
+
+    /// A horizontal ramp: red = column (0..=255), green = 255 − column, blue = 17.
+    fn ramp(dir: &Path) -> PathBuf {
+        let img = RgbImage::from_fn(256, 64, |x, _| image::Rgb([x as u8, 255 - x as u8, 17]));
+        let path = dir.join("ramp.png");
+        img.save(&path).unwrap();
+        path
+    }
+
+    fn textured_grid(path: &Path) -> Mesh {
+        let mut m = grid(8, 8);
+        m.materials.push(Material {
+            name: "skin".into(),
+            diffuse_texture: Some(Texture {
+                name: "ramp.png".into(),
+                path: path.to_path_buf(),
+                size: None,
+            }),
+            other_statements: vec![],
+            source_dir: None,
+        });
+        m
+    }
+
+    fn measure(result: &Mesh, reference: &Mesh) -> TextureDeviation {
+        let index = SurfaceIndex::new(reference, "reference").unwrap();
+        let samples = sample_surface(result, 4000, 11);
+        let points: Vec<DVec3> = samples.iter().map(|s| s.point).collect();
+        let closest = index.closest_all(&points);
+        deviation_with(
+            result,
+            reference,
+            &samples,
+            &closest,
+            &mut TextureCache::new(),
+        )
+    }
+
+    #[test]
+    fn bilinear_flips_v_and_interpolates() {
+        let img = RgbImage::from_fn(2, 2, |x, y| {
+            image::Rgb([(100 * x) as u8, (200 * y) as u8, 0])
+        });
+        // v = 1 is the image's top row (y = 0).
+        let top_left = bilinear(&img, DVec2::new(0.25, 0.75));
+        assert_eq!(top_left, DVec3::new(0.0, 0.0, 0.0));
+        let bottom_right = bilinear(&img, DVec2::new(0.75, 0.25));
+        assert_eq!(bottom_right, DVec3::new(100.0, 200.0, 0.0));
+        let centre = bilinear(&img, DVec2::new(0.5, 0.5));
+        assert_eq!(centre, DVec3::new(50.0, 100.0, 0.0));
+    }
+
+    #[test]
+    fn same_texture_is_zero_and_shift_is_measured() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = ramp(dir.path());
+        let reference = textured_grid(&path);
+        match measure(&reference, &reference) {
+            TextureDeviation::Measured { max, samples, .. } => {
+                assert_eq!(samples, 4000);
+                assert!(max < 1e-9, "{max}");
+            }
+            other => panic!("{other:?}"),
+        }
+        // Shift u by 8 texels: red and green each differ by 8 levels, blue by 0, so the
+        // per-sample RMS over channels is sqrt((64 + 64) / 3). Stay clear of the wrap: only
+        // u in [0.1, 0.85] is sampled.
+        let mut result = reference.clone();
+        for t in &mut result.texcoords {
+            t.x = 0.1 + t.x * 0.75 + 8.0 / 256.0;
+        }
+        let mut reference = reference;
+        for t in &mut reference.texcoords {
+            t.x = 0.1 + t.x * 0.75;
+        }
+        let expected = (128.0f64 / 3.0).sqrt();
+        match measure(&result, &reference) {
+            TextureDeviation::Measured { rms, p99, mean, .. } => {
+                assert!((rms - expected).abs() < 1e-6, "{rms} vs {expected}");
+                assert!((p99 - expected).abs() < 1e-6 && (mean - expected).abs() < 1e-6);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn skipped_without_texture() {
+        let m = grid(2, 2);
+        assert!(matches!(measure(&m, &m), TextureDeviation::Skipped { .. }));
+        let missing = textured_grid(Path::new("/nonexistent/ramp.png"));
+        match measure(&missing, &missing) {
+            TextureDeviation::Skipped { reason } => {
+                assert!(reason.contains("ramp.png"), "{reason}")
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+}

@@ -1,0 +1,153 @@
+//! Topology before (reference) and after (result), and cracks.
+//!
+//! A *crack* is a boundary edge of the result with no boundary of the reference near it: a
+//! hole a step opened (a seam that split, a collapse that tore the surface), as opposed to a
+//! border the scan already had. "Near": the edge's midpoint lies within
+//! `crack_distance_factor` × the reference's mean edge length of a reference boundary edge.
+//! The factor defaults to 2: a decimated border edge spans many input edges and its midpoint
+//! sits off the input's jagged border by about the sag of the chord, which on face scans is
+//! well under two input edges; an opened seam or hole in the middle of the surface is
+//! farther than that from any border.
+
+use crate::mesh::{Mesh, MeshSummary, Topology, TopologyCounts};
+use glam::DVec3;
+use parry3d_f64::math::Vector as PVector;
+use parry3d_f64::query::PointQuery;
+use parry3d_f64::shape::Polyline;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// One mesh's topology counts plus its zero-area triangles.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TopologySnapshot {
+    #[serde(flatten)]
+    pub counts: TopologyCounts,
+    pub degenerate_triangles: usize,
+}
+
+impl TopologySnapshot {
+    pub fn of(mesh: &Mesh) -> (Self, Topology) {
+        let topology = Topology::new(mesh);
+        let summary = MeshSummary::with_topology(mesh, &topology, None);
+        (
+            TopologySnapshot {
+                counts: summary.topology,
+                degenerate_triangles: summary.degenerate_triangles,
+            },
+            topology,
+        )
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TopologyComparison {
+    /// The reference (for the final metrics: the input).
+    pub before: TopologySnapshot,
+    /// The result.
+    pub after: TopologySnapshot,
+    /// Result boundary edges with no reference boundary within `crack_distance`.
+    pub cracks: usize,
+    /// The radius used, in model units.
+    pub crack_distance: f64,
+}
+
+/// Midpoints of the boundary edges of a mesh.
+fn boundary_segments(mesh: &Mesh, topology: &Topology) -> Vec<[DVec3; 2]> {
+    topology
+        .boundary_edges()
+        .map(|e| {
+            let [a, b] = topology.edge_vertices(e);
+            [mesh.positions[a as usize], mesh.positions[b as usize]]
+        })
+        .collect()
+}
+
+/// Counts result boundary edges farther than `radius` from every reference boundary edge.
+fn count_cracks(
+    result_boundary: &[[DVec3; 2]],
+    reference_boundary: &[[DVec3; 2]],
+    radius: f64,
+) -> usize {
+    if result_boundary.is_empty() {
+        return 0;
+    }
+    if reference_boundary.is_empty() {
+        return result_boundary.len();
+    }
+    let vertices: Vec<PVector> = reference_boundary
+        .iter()
+        .flatten()
+        .map(|p| PVector::new(p.x, p.y, p.z))
+        .collect();
+    let indices: Vec<[u32; 2]> = (0..reference_boundary.len() as u32)
+        .map(|i| [2 * i, 2 * i + 1])
+        .collect();
+    let polyline = Polyline::new(vertices, Some(indices));
+    result_boundary
+        .par_iter()
+        .filter(|[a, b]| {
+            let m = (*a + *b) * 0.5;
+            polyline.distance_to_local_point(PVector::new(m.x, m.y, m.z), true) > radius
+        })
+        .count()
+}
+
+pub fn compare(result: &Mesh, reference: &Mesh, crack_distance_factor: f64) -> TopologyComparison {
+    let ((before, reference_topology), (after, result_topology)) = rayon::join(
+        || TopologySnapshot::of(reference),
+        || TopologySnapshot::of(result),
+    );
+    let crack_distance = crack_distance_factor * reference.mean_edge_length();
+    let cracks = count_cracks(
+        &boundary_segments(result, &result_topology),
+        &boundary_segments(reference, &reference_topology),
+        crack_distance,
+    );
+    TopologyComparison {
+        before,
+        after,
+        cracks,
+        crack_distance,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::{grid, uv_sphere};
+
+    #[test]
+    fn same_mesh_has_no_cracks() {
+        let m = grid(6, 6);
+        let c = compare(&m, &m, 2.0);
+        assert_eq!(c.cracks, 0);
+        assert_eq!(c.before, c.after);
+        assert_eq!(c.after.counts.boundary_edges, 24);
+        assert_eq!(c.after.counts.boundary_loops, 1);
+    }
+
+    #[test]
+    fn a_hole_in_the_middle_is_cracks_a_trimmed_border_is_not() {
+        let m = grid(10, 10);
+        // Remove the two triangles of the square (5,5): 4 new boundary edges, far from the
+        // border.
+        let mut holed = m.clone();
+        let square = 2 * (5 * 10 + 5);
+        holed.triangles.drain(square..square + 2);
+        holed.compact();
+        let c = compare(&holed, &m, 2.0);
+        assert_eq!(c.cracks, 4);
+        assert_eq!(c.after.counts.boundary_loops, 2);
+        // Remove a triangle at the border instead: its new boundary edges are within one edge
+        // of the old border.
+        let mut trimmed = m.clone();
+        trimmed.triangles.remove(0);
+        trimmed.compact();
+        assert_eq!(compare(&trimmed, &m, 2.0).cracks, 0);
+        // A closed reference has no boundary: every result boundary edge is a crack.
+        let s = uv_sphere(1.0, 8, 8);
+        let mut opened = s.clone();
+        opened.triangles.pop();
+        assert_eq!(compare(&opened, &s, 2.0).cracks, 3);
+    }
+}

@@ -1,0 +1,303 @@
+//! Audit queries: `history` (a filtered list of jobs) and `show` (everything recorded about
+//! one job). Both run as short read transactions, so they never hold the WAL back.
+
+use super::{Result, Store, StoreError};
+use rusqlite::{OptionalExtension, params};
+use serde::Serialize;
+use serde_json::{Value, json};
+
+/// Filters of `scanmill history`.
+#[derive(Debug, Clone, Default)]
+pub struct HistoryFilter {
+    /// Only jobs created at or after this Unix time (ms).
+    pub since_ms: Option<i64>,
+    /// Only jobs in this state; `waiting` lists scans that wait for a missing member.
+    pub status: Option<String>,
+    /// SQLite GLOB on the input's path (`root/rel_path`), e.g. `*/james*`.
+    pub input_glob: Option<String>,
+    pub limit: Option<usize>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct HistoryRow {
+    pub id: Option<i64>,
+    pub state: String,
+    pub created: String,
+    pub finished: Option<String>,
+    pub input: String,
+    pub recipe: String,
+    pub attempts: i64,
+    pub in_faces: Option<i64>,
+    pub out_faces: Option<i64>,
+    pub process_ms: Option<f64>,
+    pub output: Option<String>,
+    pub error_kind: Option<String>,
+    pub error: Option<String>,
+}
+
+pub const STATES: &[&str] = &[
+    "queued",
+    "running",
+    "done",
+    "failed",
+    "quarantined",
+    "waiting",
+];
+
+/// Unix ms → `YYYY-MM-DDTHH:MM:SS.mmmZ` (UTC).
+pub fn iso_time(ms: i64) -> String {
+    let secs = ms.div_euclid(1000);
+    let millis = ms.rem_euclid(1000);
+    let days = secs.div_euclid(86_400);
+    let rem = secs.rem_euclid(86_400);
+    // Howard Hinnant's civil_from_days.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{millis:03}Z",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60
+    )
+}
+
+impl Store {
+    /// Parses `--since`: a duration back from now (`90s`, `30m`, `12h`, `7d`) or a UTC
+    /// date/time SQLite understands (`2026-11-01`, `2026-11-01T08:00:00`). Unix ms.
+    pub fn parse_since(&self, text: &str, now_ms: i64) -> Option<i64> {
+        let t = text.trim();
+        let units = [
+            ("s", 1_000),
+            ("m", 60_000),
+            ("h", 3_600_000),
+            ("d", 86_400_000),
+            ("w", 604_800_000),
+        ];
+        for (suffix, ms) in units {
+            if let Some(n) = t
+                .strip_suffix(suffix)
+                .and_then(|n| n.trim().parse::<f64>().ok())
+                && n.is_finite()
+                && n >= 0.0
+            {
+                return Some(now_ms - (n * ms as f64) as i64);
+            }
+        }
+        self.conn
+            .query_row(
+                "SELECT CAST(unixepoch(?1, 'subsec') * 1000 AS INTEGER)",
+                [t],
+                |r| r.get::<_, Option<i64>>(0),
+            )
+            .ok()
+            .flatten()
+    }
+
+    pub fn history(&self, f: &HistoryFilter) -> Result<Vec<HistoryRow>> {
+        let err = |source| StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        };
+        let since = f.since_ms.unwrap_or(i64::MIN);
+        let glob = f.input_glob.clone().unwrap_or_else(|| "*".into());
+        let limit = f.limit.map(|l| l as i64).unwrap_or(-1);
+        let mut rows = Vec::new();
+        if f.status.as_deref() == Some("waiting") {
+            let mut stmt = self
+                .conn
+                .prepare(
+                    "SELECT root, rel_path, reason, first_seen FROM waiting
+                     WHERE first_seen >= ?1 AND (root || '/' || rel_path) GLOB ?2
+                     ORDER BY first_seen LIMIT ?3",
+                )
+                .map_err(err)?;
+            let mapped = stmt
+                .query_map(params![since, glob, limit], |r| {
+                    let root: String = r.get(0)?;
+                    let rel: String = r.get(1)?;
+                    Ok(HistoryRow {
+                        id: None,
+                        state: "waiting".into(),
+                        created: iso_time(r.get(3)?),
+                        finished: None,
+                        input: format!("{root}/{rel}"),
+                        recipe: String::new(),
+                        attempts: 0,
+                        in_faces: None,
+                        out_faces: None,
+                        process_ms: None,
+                        output: None,
+                        error_kind: Some("waiting".into()),
+                        error: Some(r.get(2)?),
+                    })
+                })
+                .map_err(err)?;
+            for row in mapped {
+                rows.push(row.map_err(err)?);
+            }
+            return Ok(rows);
+        }
+        let mut stmt = self
+            .conn
+            .prepare(
+                "SELECT id, state, created_at, finished_at, root || '/' || rel_path, recipe_path, attempts,
+                        in_faces, out_faces, process_ms, output_dir, error_kind, error
+                 FROM job
+                 WHERE created_at >= ?1 AND (?2 IS NULL OR state = ?2) AND (root || '/' || rel_path) GLOB ?3
+                 ORDER BY id LIMIT ?4",
+            )
+            .map_err(err)?;
+        let mapped = stmt
+            .query_map(params![since, f.status, glob, limit], |r| {
+                Ok(HistoryRow {
+                    id: Some(r.get(0)?),
+                    state: r.get(1)?,
+                    created: iso_time(r.get(2)?),
+                    finished: r.get::<_, Option<i64>>(3)?.map(iso_time),
+                    input: r.get(4)?,
+                    recipe: r.get(5)?,
+                    attempts: r.get(6)?,
+                    in_faces: r.get(7)?,
+                    out_faces: r.get(8)?,
+                    process_ms: r.get(9)?,
+                    output: r.get(10)?,
+                    error_kind: r.get(11)?,
+                    error: r.get(12)?,
+                })
+            })
+            .map_err(err)?;
+        for row in mapped {
+            rows.push(row.map_err(err)?);
+        }
+        Ok(rows)
+    }
+
+    /// Everything recorded about a job, as JSON: the job, its inputs, outputs, every
+    /// attempt with its step timings, where else its input was seen, and the report.
+    pub fn show(&self, id: i64) -> Result<Value> {
+        let err = |source| StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        };
+        let conn = &self.conn;
+        let job = conn
+            .query_row("SELECT * FROM job WHERE id=?1", [id], |r| {
+                let mut map = serde_json::Map::new();
+                let stmt = r.as_ref();
+                for i in 0..stmt.column_count() {
+                    let name = stmt.column_name(i)?.to_string();
+                    let value = sql_value(r.get_ref(i)?);
+                    let value = match (name.as_str(), &value) {
+                        ("report_json" | "recipe_json", Value::String(s)) => {
+                            serde_json::from_str(s).unwrap_or(value)
+                        }
+                        (n, Value::Number(ms)) if n.ends_with("_at") || n == "run_after" => {
+                            json!(iso_time(ms.as_i64().unwrap_or(0)))
+                        }
+                        _ => value,
+                    };
+                    map.insert(name.trim_end_matches("_json").to_string(), value);
+                }
+                Ok(Value::Object(map))
+            })
+            .optional()
+            .map_err(err)?
+            .ok_or(StoreError::NoSuchJob(id))?;
+        let table = |sql: &str| -> Result<Vec<Value>> {
+            let mut stmt = conn.prepare(sql).map_err(err)?;
+            let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
+            let rows = stmt
+                .query_map([id], |r| {
+                    let mut map = serde_json::Map::new();
+                    for (i, name) in names.iter().enumerate() {
+                        let mut value = sql_value(r.get_ref(i)?);
+                        if let (true, Value::Number(ms)) = (name.ends_with("_at"), &value) {
+                            value = json!(iso_time(ms.as_i64().unwrap_or(0)));
+                        }
+                        if name.ends_with("_json")
+                            && let Value::String(s) = &value
+                        {
+                            value = serde_json::from_str(s).unwrap_or(value);
+                        }
+                        map.insert(name.trim_end_matches("_json").to_string(), value);
+                    }
+                    Ok(Value::Object(map))
+                })
+                .map_err(err)?;
+            rows.collect::<rusqlite::Result<Vec<_>>>().map_err(err)
+        };
+        let inputs = table(
+            "SELECT rel_path, role, size, mtime_ns, ino, sha256 FROM job_input WHERE job_id=?1 ORDER BY rowid",
+        )?;
+        let outputs =
+            table("SELECT path, bytes, sha256 FROM job_output WHERE job_id=?1 ORDER BY path")?;
+        let sightings =
+            table("SELECT root, rel_path, seen_at FROM sighting WHERE job_id=?1 ORDER BY seen_at")?;
+        let mut attempts = table(
+            "SELECT id, n, owner, host, app_version, started_at, finished_at, outcome, error_kind, error, wall_ms
+             FROM attempt WHERE job_id=?1 ORDER BY id",
+        )?;
+        for attempt in &mut attempts {
+            let attempt_id = attempt["id"].as_i64().unwrap_or(0);
+            let mut stmt = conn
+                .prepare(
+                    "SELECT idx, kind, wall_ms, vertices_before, vertices_after, faces_before, faces_after, figures_json
+                     FROM step_timing WHERE attempt_id=?1 ORDER BY idx",
+                )
+                .map_err(err)?;
+            let steps = stmt
+                .query_map([attempt_id], |r| {
+                    Ok(json!({
+                        "index": r.get::<_, i64>(0)?,
+                        "kind": r.get::<_, String>(1)?,
+                        "wall_ms": r.get::<_, f64>(2)?,
+                        "vertices_before": r.get::<_, i64>(3)?,
+                        "vertices_after": r.get::<_, i64>(4)?,
+                        "faces_before": r.get::<_, i64>(5)?,
+                        "faces_after": r.get::<_, i64>(6)?,
+                        "figures": serde_json::from_str::<Value>(&r.get::<_, String>(7)?).unwrap_or(Value::Null),
+                    }))
+                })
+                .map_err(err)?
+                .collect::<rusqlite::Result<Vec<_>>>()
+                .map_err(err)?;
+            attempt["steps"] = Value::Array(steps);
+        }
+        let mut job = job;
+        job["inputs"] = Value::Array(inputs);
+        job["outputs"] = Value::Array(outputs);
+        job["attempts_log"] = Value::Array(attempts);
+        job["sightings"] = Value::Array(sightings);
+        Ok(job)
+    }
+}
+
+fn sql_value(v: rusqlite::types::ValueRef<'_>) -> Value {
+    use rusqlite::types::ValueRef;
+    match v {
+        ValueRef::Null => Value::Null,
+        ValueRef::Integer(i) => json!(i),
+        ValueRef::Real(f) => json!(f),
+        ValueRef::Text(t) => json!(String::from_utf8_lossy(t)),
+        ValueRef::Blob(b) => json!(hex::encode(b)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::iso_time;
+
+    #[test]
+    fn iso_time_known_values() {
+        assert_eq!(iso_time(0), "1970-01-01T00:00:00.000Z");
+        assert_eq!(iso_time(1_700_000_000_123), "2023-11-14T22:13:20.123Z");
+        assert_eq!(iso_time(951_782_400_000), "2000-02-29T00:00:00.000Z");
+    }
+}

@@ -1,0 +1,274 @@
+use super::query::HistoryFilter;
+use super::*;
+
+fn owner() -> Owner {
+    Owner {
+        id: "test".into(),
+        host: "h".into(),
+        app_version: "0".into(),
+    }
+}
+
+fn job(key: &str, rel: &str) -> NewJob {
+    NewJob {
+        job_key: key.into(),
+        set_hash: format!("set-{key}"),
+        root: "/in".into(),
+        rel_path: rel.into(),
+        output_root: "/out".into(),
+        recipe_path: "r.toml".into(),
+        recipe_hash: "rh".into(),
+        recipe_json: "{}".into(),
+        config_hash: "ch".into(),
+        max_attempts: 2,
+        inputs: vec![InputMember {
+            rel_path: rel.into(),
+            role: "mesh",
+            size: 10,
+            mtime_ns: 5,
+            ino: 7,
+            sha256: "ab".into(),
+        }],
+    }
+}
+
+fn open() -> (tempfile::TempDir, Store) {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Store::open(&dir.path().join("db.sqlite")).unwrap();
+    (dir, store)
+}
+
+fn failed(transient: bool) -> Finish {
+    Finish::Failed {
+        kind: "io".into(),
+        message: "boom".into(),
+        transient,
+    }
+}
+
+#[test]
+fn migrations_apply_once_and_record_version() {
+    let (dir, store) = open();
+    drop(store);
+    let mut again = Store::open(&dir.path().join("db.sqlite")).unwrap();
+    assert_eq!(again.migrate().unwrap(), schema::LATEST);
+    let n: i64 = again
+        .connection()
+        .query_row("SELECT count(*) FROM schema_migrations", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(n, schema::LATEST as i64);
+    let mode: String = again
+        .connection()
+        .query_row("PRAGMA journal_mode", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(mode, "wal");
+}
+
+#[test]
+fn newer_schema_is_refused() {
+    let (dir, store) = open();
+    store
+        .connection()
+        .pragma_update(None, "user_version", schema::LATEST + 1)
+        .unwrap();
+    drop(store);
+    let e = Store::open(&dir.path().join("db.sqlite")).err().unwrap();
+    assert!(matches!(e, StoreError::TooNew { .. }), "{e}");
+}
+
+#[test]
+fn same_key_never_makes_two_jobs_and_records_sightings() {
+    let (_d, mut s) = open();
+    let a = s.enqueue(&job("k1", "a.ply")).unwrap();
+    assert_eq!(a, Enqueued::New(1));
+    let b = s.enqueue(&job("k1", "copy/b.ply")).unwrap();
+    assert_eq!(
+        b,
+        Enqueued::Existing {
+            id: 1,
+            state: "queued".into()
+        }
+    );
+    let shown = s.show(1).unwrap();
+    assert_eq!(shown["sightings"].as_array().unwrap().len(), 2);
+}
+
+#[test]
+fn claim_finish_done_records_everything() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "a.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(c.attempt, 1);
+    assert_eq!(c.inputs.len(), 1);
+    assert!(s.claim(&owner()).unwrap().is_none(), "only one job");
+    let fin = Finish::Done {
+        output_dir: "/out/a".into(),
+        outputs: vec![("/out/a/a.obj".into(), 3, "cc".into())],
+        report_json: "{\"metrics\":{\"x\":1}}".into(),
+        counts: [1, 2, 3, 4],
+        process_ms: 5.0,
+        steps: vec![StepRow {
+            kind: "normals".into(),
+            wall_ms: 1.0,
+            vertices_before: 1,
+            vertices_after: 1,
+            faces_before: 2,
+            faces_after: 2,
+            figures_json: "{}".into(),
+        }],
+    };
+    assert_eq!(
+        s.finish(&c, &fin, (1.0, 10.0), 6.0).unwrap(),
+        FinalState::Done
+    );
+    let shown = s.show(c.id).unwrap();
+    assert_eq!(shown["state"], "done");
+    assert_eq!(shown["report"]["metrics"]["x"], 1);
+    assert_eq!(shown["attempts_log"][0]["steps"][0]["kind"], "normals");
+    let h = s.history(&HistoryFilter::default()).unwrap();
+    assert_eq!(h.len(), 1);
+    assert_eq!(h[0].out_faces, Some(4));
+}
+
+#[test]
+fn transient_failures_back_off_then_quarantine_permanent_fail_at_once() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "a.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(
+        s.finish(&c, &failed(true), (3600.0, 3600.0), 1.0).unwrap(),
+        FinalState::RetryLater
+    );
+    assert!(s.claim(&owner()).unwrap().is_none(), "backoff holds it");
+    // Let the backoff pass.
+    s.connection()
+        .execute("UPDATE job SET run_after = 0", [])
+        .unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(c.attempt, 2);
+    assert_eq!(
+        s.finish(&c, &failed(true), (1.0, 1.0), 1.0).unwrap(),
+        FinalState::Quarantined
+    );
+
+    s.enqueue(&job("k2", "b.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(
+        s.finish(&c, &failed(false), (1.0, 1.0), 1.0).unwrap(),
+        FinalState::Failed
+    );
+    s.connection()
+        .execute("UPDATE job SET run_after = 0", [])
+        .unwrap();
+    assert!(
+        s.claim(&owner()).unwrap().is_none(),
+        "permanent failure is not retried"
+    );
+}
+
+#[test]
+fn recover_running_requeues_without_counting() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "a.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(c.attempt, 1);
+    assert_eq!(s.recover_running().unwrap(), 1);
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(c.attempt, 1, "the interrupted attempt is not counted");
+    let shown = s.show(c.id).unwrap();
+    assert_eq!(shown["attempts_log"][0]["outcome"], "interrupted");
+}
+
+#[test]
+fn requeue_bumps_generation_and_refuses_running() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "a.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert!(matches!(
+        s.requeue(c.id),
+        Err(StoreError::WrongState { .. })
+    ));
+    s.finish(&c, &failed(false), (1.0, 1.0), 1.0).unwrap();
+    assert_eq!(s.requeue(c.id).unwrap(), "failed");
+    let c2 = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(c2.generation, 1);
+    assert!(matches!(s.requeue(99), Err(StoreError::NoSuchJob(99))));
+}
+
+#[test]
+fn vanished_input_job_is_revived_when_input_returns() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "a.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    let gone = Finish::Failed {
+        kind: "input_vanished".into(),
+        message: "gone".into(),
+        transient: false,
+    };
+    s.finish(&c, &gone, (1.0, 1.0), 1.0).unwrap();
+    assert_eq!(
+        s.enqueue(&job("k1", "back.ply")).unwrap(),
+        Enqueued::Revived(1)
+    );
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(c.rel_path, "back.ply");
+}
+
+#[test]
+fn waiting_rows_show_in_history_and_backup_works() {
+    let (d, mut s) = open();
+    s.set_waiting("/in", "x.obj", "missing x.mtl", 1).unwrap();
+    let f = HistoryFilter {
+        status: Some("waiting".into()),
+        ..Default::default()
+    };
+    let rows = s.history(&f).unwrap();
+    assert_eq!(rows.len(), 1);
+    assert_eq!(rows[0].error.as_deref(), Some("missing x.mtl"));
+    s.clear_waiting("/in", "x.obj").unwrap();
+    assert!(s.history(&f).unwrap().is_empty());
+    let dest = d.path().join("backup.sqlite");
+    s.backup(&dest).unwrap();
+    let reader = Store::open_existing(&dest, false).unwrap();
+    assert!(
+        reader
+            .history(&HistoryFilter::default())
+            .unwrap()
+            .is_empty()
+    );
+}
+
+#[test]
+fn since_parsing() {
+    let (_d, s) = open();
+    assert_eq!(
+        s.parse_since("2d", 200_000_000),
+        Some(200_000_000 - 172_800_000)
+    );
+    assert_eq!(s.parse_since("1970-01-02", 0), Some(86_400_000));
+    assert_eq!(s.parse_since("bogus", 0), None);
+}
+
+#[test]
+fn history_filters_by_glob_and_state() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "james/james.obj")).unwrap();
+    s.enqueue(&job("k2", "bunny.ply")).unwrap();
+    let f = HistoryFilter {
+        input_glob: Some("*james*".into()),
+        ..Default::default()
+    };
+    assert_eq!(s.history(&f).unwrap().len(), 1);
+    let f = HistoryFilter {
+        status: Some("done".into()),
+        ..Default::default()
+    };
+    assert!(s.history(&f).unwrap().is_empty());
+}
+
+#[test]
+fn backoff_doubles_and_caps() {
+    assert_eq!(backoff_ms(1, 2.0, 100.0), 2000);
+    assert_eq!(backoff_ms(3, 2.0, 100.0), 8000);
+    assert_eq!(backoff_ms(20, 2.0, 100.0), 100_000);
+}
