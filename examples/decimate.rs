@@ -23,7 +23,7 @@ struct Args {
     subdivide: usize,
     #[arg(long, default_value_t = 26000)]
     target: usize,
-    #[arg(long, default_value = "face-collapse")]
+    #[arg(long, default_value = "edge-collapse")]
     method: String,
     /// Extra decimate parameters as TOML, e.g. 'texture_weight = 1.0'.
     #[arg(long, default_value = "")]

@@ -28,9 +28,13 @@ use work::{Config, Work};
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// Algorithm f (§5.6): face collapse with the wedge-aware quadric.
-    #[default]
     FaceCollapse,
-    /// Full-edge collapse over the same quadrics and guards.
+    /// Full-edge collapse over the same quadrics and guards. The default: on all six
+    /// textured test scans it has a lower mean and RMS distance than face collapse (e.g.
+    /// facefuns → 26k: mean 0.0042 % vs 0.0047 % of the diagonal; USNM coral: 0.059 % vs
+    /// 0.089 %), and it reaches the target where face collapse runs out of collapses that
+    /// keep every seam (pizza → 5k: 14.3k vs 25.2k faces).
+    #[default]
     EdgeCollapse,
     /// Algorithm v (§5.5): octree clustering with the attribute-extended quadric.
     Cluster,
@@ -111,7 +115,11 @@ pub struct DecimateParams {
     pub boundary: BoundaryMode,
     /// Weight of the border planes with `boundary = "weighted"`.
     pub boundary_weight: f64,
-    /// λ_geom, λ_tex, λ_normal of §3.7 (Table 5.1 recommends 1, 1e-17, 1e-17).
+    /// λ_geom, λ_tex, λ_normal of §3.7. Table 5.1 recommends 1, 1e-17, 1e-17; our default
+    /// λ_tex is 0.05 (w = 0.0025 on texture coordinates in [0,1] against a unit-box
+    /// geometry): measured on facefuns → 26k it lowers the colour deviation from 0.57 to 0.52
+    /// levels (mean) for a distance still below MeshLab's (0.0043 % vs 0.0049 %), and it
+    /// leaves the other scans within ±1 %. Set 1e-17 for the thesis' values.
     pub geometry_weight: f64,
     pub texture_weight: f64,
     pub normal_weight: f64,
@@ -132,13 +140,13 @@ pub struct DecimateParams {
 impl Default for DecimateParams {
     fn default() -> Self {
         DecimateParams {
-            method: Method::FaceCollapse,
+            method: Method::EdgeCollapse,
             target_faces: None,
             max_error: None,
             boundary: BoundaryMode::Keep,
             boundary_weight: 1.0,
             geometry_weight: 1.0,
-            texture_weight: 1e-17,
+            texture_weight: 0.05,
             normal_weight: 1e-17,
             squared_weights: true,
             priority: Priority::Quadric,

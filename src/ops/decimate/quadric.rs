@@ -384,7 +384,18 @@ impl Reduced {
         max_cond: f64,
         regularise: bool,
     ) -> ([f64; 3], bool) {
-        let (lmin, lmax) = sym3_eigen_range(&self.m);
+        // Cheap sufficient test first: for a positive definite 3×3 matrix
+        // λ_max/λ_min ≤ λ_max³/det ≤ trace³/det, so trace³ ≤ max_cond·det proves it well
+        // conditioned without the eigenvalues; only the doubtful cases pay for them.
+        let m = &self.m;
+        let trace = m[0] + m[3] + m[5];
+        let det = m[0] * (m[3] * m[5] - m[4] * m[4]) - m[1] * (m[1] * m[5] - m[4] * m[2])
+            + m[2] * (m[1] * m[4] - m[3] * m[2]);
+        let (lmin, lmax) = if det > 0.0 && trace > 0.0 && trace * trace * trace <= max_cond * det {
+            (det, det)
+        } else {
+            sym3_eigen_range(&self.m)
+        };
         let ok = lmax > 0.0 && lmin > 0.0 && lmax <= max_cond * lmin;
         if ok && let Some(p) = solve_sym3(&self.m, scale(self.r, -1.0)) {
             return (p, false);

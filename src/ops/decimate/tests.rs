@@ -236,6 +236,7 @@ fn estimate_priority_and_thesis_literal_modes_run() {
     let p = DecimateParams {
         priority: Priority::Estimate,
         conditioning: Conditioning::ThesisLiteral,
+        texture_weight: 1e-17,
         ..params(Method::FaceCollapse, 200)
     };
     let (out, r) = decimate(&m, &p).unwrap();
