@@ -225,6 +225,7 @@ pub fn fair_polyline(
             mean: sum / movable as f64,
             max,
             updates: movable,
+            halt: false,
         }
     })
 }

@@ -243,8 +243,8 @@ impl GuardCounts {
 }
 
 /// Every triangle's reference for a step starting at `positions`: its normal there, with
-/// the tight cone unless the triangle is folded over against its edge neighbours (its
-/// normal opposes the sum of theirs), which fairing should be free to undo.
+/// the tight cone unless the triangle is folded over against its edge neighbours, which
+/// fairing should be free to undo.
 pub fn triangle_references(mesh: &Mesh, topo: &Topology, positions: &[DVec3]) -> Vec<Reference> {
     let normals: Vec<DVec3> = (0..mesh.triangles.len())
         .map(|t| {
@@ -255,6 +255,7 @@ pub fn triangle_references(mesh: &Mesh, topo: &Topology, positions: &[DVec3]) ->
     (0..mesh.triangles.len())
         .map(|t| {
             let mut around = DVec3::ZERO;
+            let mut neighbours = 0;
             for e in topo.triangle_edges(t as u32) {
                 if e == crate::mesh::topology::NO_EDGE {
                     continue;
@@ -262,12 +263,18 @@ pub fn triangle_references(mesh: &Mesh, topo: &Topology, positions: &[DVec3]) ->
                 for u in topo.edge_triangles(e) {
                     if u as usize != t {
                         around += normals[u as usize].normalize_or_zero();
+                        neighbours += 1;
                     }
                 }
             }
+            // Folded: three edge neighbours, and more than 120° from the mean of their
+            // normals. Looser tests let relax make border triangles (one or two
+            // neighbours) "folded" for fair, which then turned them over (james, Angel).
+            let fold = neighbours == 3
+                && normals[t].dot(around) < -0.5 * normals[t].length() * around.length();
             Reference {
                 normal: normals[t],
-                tight: normals[t].dot(around) >= 0.0,
+                tight: !fold,
             }
         })
         .collect()

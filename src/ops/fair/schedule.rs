@@ -116,6 +116,8 @@ pub struct Sweep {
     pub max: f64,
     /// Vertex updates computed.
     pub updates: usize,
+    /// The sweep asks the run to end here (a guard of the caller's).
+    pub halt: bool,
 }
 
 /// What a run did.
@@ -166,6 +168,9 @@ pub fn run(params: &PhaseParams, scale: f64, mut sweep: impl FnMut(Phase) -> Swe
         stats.last_mean_displacement = s.mean;
         stats.max_step = stats.max_step.max(s.max);
         stats.vertex_updates += s.updates as u64;
+        if s.halt {
+            break;
+        }
         let may_stop = params.stop_in == StopIn::Any || phase == Phase::Curvature;
         if may_stop && s.mean < threshold {
             stats.stopped_by_displacement = true;
@@ -219,6 +224,7 @@ mod tests {
             mean: 1.0,
             max: 1.0,
             updates: 3,
+            halt: false,
         });
         assert_eq!((s.iterations, s.vertex_updates), (7, 21));
         assert!(!s.stopped_by_displacement);

@@ -341,6 +341,7 @@ pub fn thesis_curvature_sweep(
         mean: sum / it.movable_count.max(1) as f64,
         max,
         updates: it.movable_count,
+        halt: false,
     }
 }
 
@@ -378,6 +379,7 @@ pub fn thesis_nonuniformity_sweep(
         mean: sum / it.movable_count.max(1) as f64,
         max,
         updates: it.movable_count,
+        halt: false,
     }
 }
 
@@ -586,6 +588,7 @@ fn commit_parallel(
         mean: sum / it.movable_count.max(1) as f64,
         max,
         updates: it.movable_count,
+        halt: false,
     }
 }
 

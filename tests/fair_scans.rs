@@ -1,0 +1,311 @@
+//! Fairing on the real scans in ../shared/data.
+//!
+//! Always run: surfaces with boundary (james, the ggg_sfm meshes): borders come out
+//! smooth, holes neither close nor grow, no triangle is turned over; and one noise-protocol
+//! scan (the bunny) against Taubin smoothing.
+//!
+//! `#[ignore]`d, for the figures (`cargo test --release --test fair_scans -- --ignored
+//! --nocapture`): the noise protocol on the four scans of the issue, against Taubin, with
+//! times; and the speed on a 200k-vertex scan.
+
+use glam::DVec3;
+use scanmill::mesh::{LoadOptions, Mesh, Topology, io};
+use scanmill::metrics::distance::surface_distance;
+use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
+use scanmill::metrics::volume;
+use scanmill::ops::fair::{self, FairParams, FairReport, RelaxParams, guards};
+use std::path::Path;
+use std::time::Instant;
+
+const DATA: &str = "../shared/data";
+
+fn load(rel: &str) -> Mesh {
+    let path = Path::new(DATA).join(rel);
+    io::load(&path, &LoadOptions::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .0
+}
+
+/// Taubin λ|μ smoothing as spec/smoothing.md §5 describes it (the reference the issue
+/// compares with; the smoothing step is another branch's): `passes` umbrella passes,
+/// λ on odd passes and μ on even ones, buffered, every vertex with neighbours.
+fn taubin(mesh: &mut Mesh, lambda: f64, mu: f64, passes: usize) {
+    let topo = mesh.topology();
+    let mut old = mesh.positions.clone();
+    for k in 0..passes {
+        let f = if k % 2 == 0 { lambda } else { mu };
+        old.copy_from_slice(&mesh.positions);
+        for (v, p) in mesh.positions.iter_mut().enumerate() {
+            let nb = topo.vertex_neighbours(v as u32);
+            if nb.is_empty() {
+                continue;
+            }
+            let avg = nb.iter().map(|&j| old[j as usize]).sum::<DVec3>() / nb.len() as f64;
+            *p = old[v] + f * (avg - old[v]);
+        }
+    }
+}
+
+fn noise() -> NoiseOptions {
+    NoiseOptions {
+        sigma_factor: 0.2,
+        seed: 1,
+        ..NoiseOptions::default()
+    }
+}
+
+/// Mean surface distance (both ways) to the clean scan.
+fn distance(result: &Mesh, clean: &Mesh, samples: usize) -> f64 {
+    surface_distance(result, clean, samples, 7).unwrap().mean
+}
+
+fn volume_change_percent(result: &Mesh, clean: &Mesh) -> Option<f64> {
+    volume::compare(result, clean).change_percent
+}
+
+/// relax then fair with the defaults.
+fn relax_and_fair(mesh: &mut Mesh) -> (FairReport, FairReport) {
+    let r = fair::relax(mesh, &RelaxParams::default());
+    let f = fair::fair(mesh, &FairParams::default());
+    (r, f)
+}
+
+// ------------------------------------------------------------------------------------
+// Surfaces with boundary
+// ------------------------------------------------------------------------------------
+
+struct Loop {
+    perimeter: f64,
+    area: f64,
+    turning: f64,
+}
+
+fn loop_shape(pts: &[DVec3]) -> Loop {
+    let n = pts.len();
+    let c = pts.iter().copied().sum::<DVec3>() / n as f64;
+    Loop {
+        perimeter: (0..n).map(|i| (pts[(i + 1) % n] - pts[i]).length()).sum(),
+        area: (0..n)
+            .map(|i| (pts[i] - c).cross(pts[(i + 1) % n] - c))
+            .sum::<DVec3>()
+            .length()
+            / 2.0,
+        turning: (0..n)
+            .map(|i| {
+                let a = pts[i] - pts[(i + n - 1) % n];
+                let b = pts[(i + 1) % n] - pts[i];
+                a.angle_between(b)
+            })
+            .sum::<f64>()
+            / n as f64,
+    }
+}
+
+fn check_borders(rel: &str) {
+    let input = load(rel);
+    let topo: Topology = input.topology();
+    let references = guards::triangle_references(&input, &topo, &input.positions);
+    let mut m = input.clone();
+    let (r, f) = relax_and_fair(&mut m);
+    // No triangle turned over (folds the input had against their neighbours may be undone).
+    let (turned, undone) = guards::turned_over(&m, &references, &m.positions);
+    assert_eq!(turned, 0, "{rel}: {turned} triangles turned over");
+    assert!(f.boundary_curves > 0, "{rel}");
+    let mut loops: Vec<(Loop, Loop)> = topo
+        .boundary_chains()
+        .iter()
+        .filter(|c| c.closed && c.vertices.len() >= fair::boundary::MIN_CURVE_VERTICES)
+        .map(|c| {
+            let at = |m: &Mesh| -> Vec<DVec3> {
+                c.vertices
+                    .iter()
+                    .map(|&v| m.positions[v as usize])
+                    .collect()
+            };
+            (loop_shape(&at(&input)), loop_shape(&at(&m)))
+        })
+        .collect();
+    loops.sort_by(|a, b| b.0.perimeter.total_cmp(&a.0.perimeter));
+    // The outer border (the longest loop) comes out smooth: its mean turning angle at
+    // least halves.
+    let (outer0, outer1) = &loops[0];
+    assert!(
+        outer1.turning < 0.5 * outer0.turning,
+        "{rel}: outer border turning {:.1}° -> {:.1}°",
+        outer0.turning.to_degrees(),
+        outer1.turning.to_degrees()
+    );
+    // Holes neither close nor grow by more than 2% of their perimeter: the mean shift of
+    // the loop across itself, |ΔA| / P, stays within 0.02 P; the perimeter does not grow
+    // by 2% either (straightening a ragged border shortens it).
+    for (i, (a, b)) in loops.iter().enumerate() {
+        assert!(
+            (b.area - a.area).abs() <= 0.02 * a.perimeter * a.perimeter && b.area > 0.0,
+            "{rel} loop {i}: area {} -> {} (perimeter {})",
+            a.area,
+            b.area,
+            a.perimeter
+        );
+        assert!(
+            b.perimeter <= 1.02 * a.perimeter,
+            "{rel} loop {i}: perimeter {} -> {}",
+            a.perimeter,
+            b.perimeter
+        );
+    }
+    eprintln!(
+        "{rel}: {} loops faired; outer turning {:.1}° -> {:.1}°; folds undone {undone}; guards relax {}+{} fair {}+{}; {:.0}+{:.0} ms",
+        f.boundary_curves,
+        outer0.turning.to_degrees(),
+        outer1.turning.to_degrees(),
+        r.flips_avoided,
+        r.degenerate_avoided,
+        f.flips_avoided,
+        f.degenerate_avoided,
+        r.time_ms,
+        f.time_ms
+    );
+}
+
+#[test]
+fn james_borders_are_smoothed_and_holes_kept() {
+    check_borders("textured/james_face_stereo_capture/james.obj");
+}
+
+#[test]
+fn ggg_sfm_borders_are_smoothed_and_holes_kept() {
+    for name in ["Angel", "birdBath", "blackVase"] {
+        check_borders(&format!("raw_photogrammetry/ggg_sfm_{name}_decimated.ply"));
+    }
+}
+
+// ------------------------------------------------------------------------------------
+// The noise protocol
+// ------------------------------------------------------------------------------------
+
+struct Row {
+    name: &'static str,
+    vertices: usize,
+    noisy: f64,
+    taubin: f64,
+    taubin_volume: Option<f64>,
+    taubin_ms: f64,
+    ours: f64,
+    ours_volume: Option<f64>,
+    fair_only: f64,
+    relax: FairReport,
+    fair: FairReport,
+}
+
+fn protocol(name: &'static str, rel: &str, samples: usize) -> Row {
+    let clean = load(rel);
+    let (noisy, _) = noisy_copy(&clean, &noise());
+    let mut t = noisy.clone();
+    let start = Instant::now();
+    taubin(&mut t, 0.53, -0.54, 13);
+    let taubin_ms = start.elapsed().as_secs_f64() * 1e3;
+    let mut ours = noisy.clone();
+    let (relax, fair) = relax_and_fair(&mut ours);
+    let mut fair_only = noisy.clone();
+    fair::fair(&mut fair_only, &FairParams::default());
+    Row {
+        name,
+        vertices: clean.positions.len(),
+        noisy: distance(&noisy, &clean, samples),
+        taubin: distance(&t, &clean, samples),
+        taubin_volume: volume_change_percent(&t, &clean),
+        taubin_ms,
+        ours: distance(&ours, &clean, samples),
+        ours_volume: volume_change_percent(&ours, &clean),
+        fair_only: distance(&fair_only, &clean, samples),
+        relax,
+        fair,
+    }
+}
+
+#[test]
+fn noisy_bunny_is_faired_about_as_well_as_taubin() {
+    let row = protocol("bunny", "untextured/stanford_bunny/bun_zipper.ply", 30_000);
+    eprintln!(
+        "bunny: noisy {:.3e}, Taubin {:.3} of noisy, relax+fair {:.3}, fair {:.3}",
+        row.noisy,
+        row.taubin / row.noisy,
+        row.ours / row.noisy,
+        row.fair_only / row.noisy
+    );
+    // Measured (30k samples): Taubin 0.585 of the noisy distance, fair 0.62, relax + fair
+    // 0.70. The thesis' method is about as good a denoiser as Taubin here, not better.
+    assert!(row.fair_only < 0.7 * row.noisy);
+    assert!(row.fair_only < 1.15 * row.taubin);
+    assert_eq!(row.fair.flipped_vs_input, 0);
+}
+
+fn pct(x: Option<f64>) -> String {
+    x.map_or("open".into(), |v| format!("{v:+.3}%"))
+}
+
+#[test]
+#[ignore = "figures: run with --release -- --ignored --nocapture"]
+fn figures_noise_protocol_against_taubin() {
+    let scans: [(&'static str, &str); 4] = [
+        ("facefuns", "textured/facefuns_di3d_face/example.obj"),
+        ("lucy", "untextured/misc_scans/stanford_lucy_100k.ply"),
+        (
+            "igea",
+            "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
+        ),
+        ("bunny", "untextured/stanford_bunny/bun_zipper.ply"),
+    ];
+    println!(
+        "| scan | V | noisy dist | Taubin (×noisy) | Taubin vol | relax+fair (×noisy, ×Taubin) | vol | fair only (×Taubin) | relax ms | fair ms | iterations | Mupd/s |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for (name, rel) in scans {
+        let r = protocol(name, rel, 200_000);
+        println!(
+            "| {} | {} | {:.3e} | {:.3} | {} | {:.3}, {:.3} | {} | {:.3} | {:.0} | {:.0} | {}+{} (×{}) | {:.1} |",
+            r.name,
+            r.vertices,
+            r.noisy,
+            r.taubin / r.noisy,
+            pct(r.taubin_volume),
+            r.ours / r.noisy,
+            r.ours / r.taubin,
+            pct(r.ours_volume),
+            r.fair_only / r.taubin,
+            r.relax.time_ms,
+            r.fair.time_ms,
+            r.relax.iterations,
+            r.fair.iterations,
+            r.fair.time_scale,
+            r.fair.updates_per_second / 1e6,
+        );
+        let _ = r.taubin_ms;
+    }
+}
+
+#[test]
+#[ignore = "figures: run with --release -- --ignored --nocapture"]
+fn figures_speed_on_200k_vertices() {
+    // Lucy subdivided once: 200k vertices, 400k triangles; then the noise protocol.
+    let lucy =
+        scanmill::ops::subdivide::subdivide(&load("untextured/misc_scans/stanford_lucy_100k.ply"));
+    let (noisy, _) = noisy_copy(&lucy, &noise());
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut m = noisy.clone();
+        let r = pool.install(|| fair::fair(&mut m, &FairParams::default()));
+        println!(
+            "{} vertices, {threads} thread(s): fair {:.0} ms, {} iterations (×{}), {:.1} M vertex updates/s, distance {:.3} of noisy",
+            m.positions.len(),
+            r.time_ms,
+            r.iterations,
+            r.time_scale,
+            r.updates_per_second / 1e6,
+            distance(&m, &lucy, 100_000) / distance(&noisy, &lucy, 100_000)
+        );
+    }
+}
