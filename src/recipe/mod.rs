@@ -255,7 +255,7 @@ impl Recipe {
         })?;
         let parse_error = |line: usize, message: String| RecipeError::Parse {
             path: path.to_path_buf(),
-            message: format!("line {line}: {}", message.trim_end()),
+            message: format!("line {line}: {}", message.trim_end()).replace('\n', " "),
         };
         file.metrics
             .options()
