@@ -4,7 +4,7 @@
 
 use crate::mesh::ply::PlyEncoding;
 use crate::mesh::{LoadOptions, Mesh, MeshError, SaveOptions, load, save};
-use crate::recipe::runner::{Progress, StepError, run_steps};
+use crate::recipe::runner::{Progress, RunOutcome, StepError, run_recipe};
 use crate::recipe::{OutputFormat, PlyEncodingSpec, Recipe};
 use crate::report::{
     FileHash, InputReport, MeshCounts, OutputReport, RecipeReport, Report, combined_hash,
@@ -170,12 +170,13 @@ pub fn process_scan(
     let input_counts = MeshCounts::of(&mesh);
     tracing::info!(input = %input.display(), faces = input_counts.faces, load_ms, "loaded");
 
-    let steps = run_steps(recipe, &mut mesh, progress, 1, total_stages).map_err(|source| {
-        ProcessError::Step {
+    // The steps, then the final metrics against the input (a clone of it is kept while the
+    // steps run, unless the recipe turns metrics off).
+    let RunOutcome { steps, metrics } = run_recipe(recipe, &mut mesh, progress, 1, total_stages)
+        .map_err(|source| ProcessError::Step {
             input: input.to_path_buf(),
             source,
-        }
-    })?;
+        })?;
 
     progress.stage(total_stages - 1, total_stages, "write");
     let write_start = Instant::now();
@@ -204,7 +205,7 @@ pub fn process_scan(
             resolved: recipe.resolved_json(),
         },
         steps,
-        metrics: serde_json::Value::Null,
+        metrics,
         output: OutputReport {
             files: output_files,
             counts: MeshCounts::of(&mesh),

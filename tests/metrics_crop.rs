@@ -213,6 +213,11 @@ fn noisy_copy_of_james_moves_every_metric() {
         },
     )
     .unwrap();
+    eprintln!(
+        "james vs noisy copy (σ = {:.4}): {}",
+        noise.sigma,
+        serde_json::to_string(&m).unwrap()
+    );
     // σ along the normals: the vertices move by |N(0, σ²)|, mean σ·sqrt(2/π); the surface
     // between them moves less.
     let v = m.vertex_deviation.unwrap();
@@ -225,4 +230,37 @@ fn noisy_copy_of_james_moves_every_metric() {
     assert!(m.normals.mean > 0.05 && m.normals.flipped_faces < input.triangles.len() / 20);
     assert!(matches!(m.texture, TextureDeviation::Measured { rms, .. } if rms > 0.1));
     assert_eq!(m.topology.cracks, 0);
+}
+
+#[test]
+fn process_report_carries_final_metrics() {
+    let out = tempfile::tempdir().unwrap();
+    let recipe = Recipe::from_toml(
+        "[metrics]\nsamples = 20000\n\n[[step]]\nkind = \"normals\"\n",
+        Path::new("normals.toml"),
+    )
+    .unwrap();
+    let report = scanmill::process::process_scan(
+        &Path::new(DATA).join(SCANS[0]),
+        &recipe,
+        None,
+        out.path(),
+        &NoProgress,
+    )
+    .unwrap();
+    let m = serde_json::to_value(&report).unwrap()["metrics"].clone();
+    assert_eq!(m["reference"], "input");
+    // Normals move no vertex: the surface, its texture and its topology are unchanged.
+    assert!(
+        m["distance"]["max"].as_f64().unwrap() < 1e-9,
+        "{}",
+        m["distance"]
+    );
+    assert_eq!(m["texture"]["status"], "measured");
+    assert!(m["texture"]["rms"].as_f64().unwrap() < 1e-6);
+    assert_eq!(m["normals"]["correspondence"], "same-faces");
+    assert_eq!(m["topology"]["before"]["boundary_edges"], 552);
+    assert_eq!(m["topology"]["after"]["boundary_edges"], 552);
+    assert_eq!(m["topology"]["cracks"], 0);
+    assert_eq!(m["volume"]["change_percent"], serde_json::Value::Null);
 }

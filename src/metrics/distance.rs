@@ -113,8 +113,14 @@ pub fn surface_distance(
     let (reference_index, result_index) = (reference_index?, result_index?);
     let on_result = sample_surface(result, samples, seed);
     let on_reference = sample_surface(reference, samples, reference_seed(seed));
-    let forward = reference_index.closest_all(&positions(&on_result));
-    let backward = result_index.closest_all(&positions(&on_reference));
+    let forward = reference_index.closest_to_samples(
+        &on_result,
+        super::surface::counterparts(result, reference).as_deref(),
+    );
+    let backward = result_index.closest_to_samples(
+        &on_reference,
+        super::surface::counterparts(reference, result).as_deref(),
+    );
     Ok(from_queries(&forward, &backward, reference, seed))
 }
 

@@ -110,6 +110,43 @@ pub fn compare_with_cache(
     cache: &mut TextureCache,
 ) -> Result<FinalMetrics, MetricsError> {
     let start = Instant::now();
+    // The sample-based metrics and the combinatorial ones are independent: run them side
+    // by side (each is parallel inside too).
+    let (sampled, (topology, vertex_deviation)) = rayon::join(
+        || sampled_metrics(result, reference, options, cache),
+        || {
+            rayon::join(
+                || topology::compare(result, reference, options.crack_distance_factor),
+                || distance::vertex_deviation(result, reference),
+            )
+        },
+    );
+    let (distance, normals, texture) = sampled?;
+    let volume = volume::change(
+        volume::volume_from_counts(result, &topology.after.counts),
+        volume::volume_from_counts(reference, &topology.before.counts),
+    );
+    let metrics = FinalMetrics {
+        distance,
+        vertex_deviation,
+        volume,
+        normals,
+        texture,
+        topology,
+        wall_ms: start.elapsed().as_secs_f64() * 1e3,
+    };
+    tracing::debug!(wall_ms = metrics.wall_ms, "metrics computed");
+    Ok(metrics)
+}
+
+/// Surface distance, angular deviation and texture deviation: the metrics that need the
+/// closest-point index.
+fn sampled_metrics(
+    result: &Mesh,
+    reference: &Mesh,
+    options: &MetricsOptions,
+    cache: &mut TextureCache,
+) -> Result<(SurfaceDistance, AngularDeviation, TextureDeviation), MetricsError> {
     let (reference_index, result_index) = rayon::join(
         || surface::SurfaceIndex::new(reference, "reference"),
         || surface::SurfaceIndex::new(result, "result"),
@@ -121,24 +158,19 @@ pub fn compare_with_cache(
         options.samples,
         distance::reference_seed(options.seed),
     );
-    let forward = reference_index.closest_all(&distance::positions(&on_result));
-    let backward = result_index.closest_all(&distance::positions(&on_reference));
+    let to_reference = surface::counterparts(result, reference);
+    let forward = reference_index.closest_to_samples(&on_result, to_reference.as_deref());
+    let backward = result_index.closest_to_samples(
+        &on_reference,
+        surface::counterparts(reference, result).as_deref(),
+    );
     drop(result_index);
     let distance = distance::from_queries(&forward, &backward, reference, options.seed);
-    let normals = normals::angular_deviation_with(result, &reference_index);
+    let normals =
+        normals::angular_deviation_with(result, &reference_index, to_reference.as_deref());
     drop(reference_index);
     let texture = texture::deviation_with(result, reference, &on_result, &forward, cache);
-    let metrics = FinalMetrics {
-        distance,
-        vertex_deviation: distance::vertex_deviation(result, reference),
-        volume: volume::compare(result, reference),
-        normals,
-        texture,
-        topology: topology::compare(result, reference, options.crack_distance_factor),
-        wall_ms: start.elapsed().as_secs_f64() * 1e3,
-    };
-    tracing::debug!(wall_ms = metrics.wall_ms, "metrics computed");
-    Ok(metrics)
+    Ok((distance, normals, texture))
 }
 
 /// Whether the two meshes have the same vertices (by index) and the same triangles over

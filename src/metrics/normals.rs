@@ -5,12 +5,13 @@
 //!   result and face f of the reference.
 //! - Otherwise (crop, decimation): the angle between each result face's normal and the
 //!   normal of the reference triangle closest to the face's centroid. A result face whose
-//!   corners are exactly those of the reference triangle it descends from
-//!   (`triangle_origins`, e.g. a face a crop kept) is that triangle: no query needed.
+//!   corners are exactly those of its counterpart (the reference triangle from the same
+//!   input triangle, via `triangle_origins`: e.g. a face a crop kept) is that triangle: no
+//!   query needed.
 //!
 //! Zero-area faces have no normal (smoothing.md pitfall 13); they are counted, not measured.
 
-use super::surface::SurfaceIndex;
+use super::surface::{self, SurfaceIndex};
 use super::{MetricsError, Summary, same_connectivity};
 use crate::mesh::Mesh;
 use glam::DVec3;
@@ -74,18 +75,12 @@ fn summarise(angles: &[Option<f64>], correspondence: Correspondence) -> AngularD
     }
 }
 
-/// Whether result face `t` is exactly its origin triangle in the reference.
-fn is_origin_face(result: &Mesh, reference: &Mesh, t: usize) -> Option<usize> {
-    let origin = result.triangle_origin(t) as usize;
-    (origin < reference.triangles.len()
-        && result.triangle_positions(t) == reference.triangle_positions(origin))
-    .then_some(origin)
-}
-
-/// Angular deviation with a prepared closest-point index of the reference.
+/// Angular deviation with a prepared closest-point index of the reference and, optionally,
+/// each result face's counterpart in the reference ([`surface::counterparts`]).
 pub fn angular_deviation_with(
     result: &Mesh,
     reference_index: &SurfaceIndex<'_>,
+    counterparts: Option<&[u32]>,
 ) -> AngularDeviation {
     let reference = reference_index.mesh();
     if same_connectivity(result, reference) {
@@ -99,11 +94,25 @@ pub fn angular_deviation_with(
         .into_par_iter()
         .map(|t| {
             let n = unit_normal(result, t)?;
-            let reference_face = match is_origin_face(result, reference, t) {
-                Some(origin) => origin,
-                None => {
+            let near = counterparts
+                .and_then(|c| c.get(t).copied())
+                .filter(|&c| (c as usize) < reference.triangles.len());
+            let reference_face = match near {
+                // The face a crop kept: it is its counterpart.
+                Some(c)
+                    if result.triangle_positions(t) == reference.triangle_positions(c as usize) =>
+                {
+                    c as usize
+                }
+                _ => {
                     let [a, b, c] = result.triangle_positions(t);
-                    reference_index.closest((a + b + c) / 3.0).on.triangle as usize
+                    let centroid = (a + b + c) / 3.0;
+                    match near {
+                        Some(near) => reference_index.closest_near(centroid, near as usize),
+                        None => reference_index.closest(centroid),
+                    }
+                    .on
+                    .triangle as usize
                 }
             };
             Some(angle(n, unit_normal(reference, reference_face)?))
@@ -118,7 +127,12 @@ pub fn angular_deviation(
 ) -> Result<AngularDeviation, MetricsError> {
     super::surface::check_measurable(result, "result")?;
     let index = SurfaceIndex::new(reference, "reference")?;
-    Ok(angular_deviation_with(result, &index))
+    let counterparts = surface::counterparts(result, reference);
+    Ok(angular_deviation_with(
+        result,
+        &index,
+        counterparts.as_deref(),
+    ))
 }
 
 #[cfg(test)]

@@ -5,8 +5,8 @@ use super::MetricsError;
 use crate::mesh::Mesh;
 use glam::DVec3;
 use parry3d_f64::math::Vector as PVector;
-use parry3d_f64::query::PointQueryWithLocation;
-use parry3d_f64::shape::TriMesh;
+use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
+use parry3d_f64::shape::{TriMesh, Triangle};
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
@@ -156,7 +156,32 @@ impl<'a> SurfaceIndex<'a> {
         let (projection, (part, _)) = self
             .trimesh
             .project_local_point_and_get_location(to_parry(p), false);
-        let point = DVec3::new(projection.point.x, projection.point.y, projection.point.z);
+        self.closest_from(p, projection.point, part)
+    }
+
+    /// The exact closest point of the surface to `p`, knowing that triangle `near` of the
+    /// mesh is close: its distance bounds the search from the start, which prunes most of
+    /// the BVH (the answer is the same, only found faster).
+    pub fn closest_near(&self, p: DVec3, near: usize) -> Closest {
+        if near >= self.mesh.triangles.len() {
+            return self.closest(p);
+        }
+        let [a, b, c] = self.mesh.triangle_positions(near);
+        let bound = Triangle::new(to_parry(a), to_parry(b), to_parry(c))
+            .distance_to_local_point(to_parry(p), true);
+        // A hair over the bound, so that the triangle itself (or a closer one) qualifies.
+        let max_dist = bound * (1.0 + 1e-9) + f64::MIN_POSITIVE;
+        match self
+            .trimesh
+            .project_local_point_and_get_location_with_max_dist(to_parry(p), false, max_dist)
+        {
+            Some((projection, (part, _))) => self.closest_from(p, projection.point, part),
+            None => self.closest(p),
+        }
+    }
+
+    fn closest_from(&self, p: DVec3, projected: PVector, part: u32) -> Closest {
+        let point = DVec3::new(projected.x, projected.y, projected.z);
         // `part` is always in range for a finite query on a non-empty mesh (both checked);
         // fall back to the first triangle rather than panic should that ever change.
         let triangle = self
@@ -179,6 +204,55 @@ impl<'a> SurfaceIndex<'a> {
     pub fn closest_all(&self, points: &[DVec3]) -> Vec<Closest> {
         points.par_iter().map(|&p| self.closest(p)).collect()
     }
+
+    /// Closest points of samples on another mesh, in parallel, in the order given;
+    /// `counterparts[t]` (if any) is a triangle of this mesh near the other's triangle `t`.
+    pub fn closest_to_samples(
+        &self,
+        samples: &[SurfacePoint],
+        counterparts: Option<&[u32]>,
+    ) -> Vec<Closest> {
+        samples
+            .par_iter()
+            .map(
+                |s| match counterparts.and_then(|c| c.get(s.triangle as usize)) {
+                    Some(&near) if near != u32::MAX => self.closest_near(s.point, near as usize),
+                    _ => self.closest(s.point),
+                },
+            )
+            .collect()
+    }
+}
+
+/// For each triangle of `from`, a triangle of `to` that is likely near it (`u32::MAX` for
+/// none): the same triangle when the connectivity is the same (smoothing), else the `to`
+/// triangle descending from the same input triangle (`triangle_origins`; crop, decimation).
+/// Only a hint for [`SurfaceIndex::closest_near`]: a wrong one costs time, never accuracy.
+pub fn counterparts(from: &Mesh, to: &Mesh) -> Option<Vec<u32>> {
+    if super::same_connectivity(from, to) {
+        return Some((0..from.triangles.len() as u32).collect());
+    }
+    if from.triangle_origins.is_empty() && to.triangle_origins.is_empty() {
+        return None; // unrelated meshes, as far as we can tell
+    }
+    let size = (0..to.triangles.len())
+        .map(|t| to.triangle_origin(t) as usize + 1)
+        .max()
+        .unwrap_or(0);
+    let mut by_origin = vec![u32::MAX; size];
+    for t in (0..to.triangles.len()).rev() {
+        by_origin[to.triangle_origin(t) as usize] = t as u32;
+    }
+    Some(
+        (0..from.triangles.len())
+            .map(|t| {
+                by_origin
+                    .get(from.triangle_origin(t) as usize)
+                    .copied()
+                    .unwrap_or(u32::MAX)
+            })
+            .collect(),
+    )
 }
 
 #[cfg(test)]
@@ -214,5 +288,36 @@ mod tests {
         assert!((c.on.point - DVec3::new(1.25, 2.5, 0.0)).length() < 1e-12);
         let back = interpolate_position(&g, c.on.triangle as usize, c.on.bary);
         assert!((back - c.on.point).length() < 1e-12);
+    }
+
+    #[test]
+    fn a_hint_changes_speed_not_answers() {
+        let m = uv_sphere(1.0, 24, 32);
+        let index = SurfaceIndex::new(&m, "reference").unwrap();
+        let mut rng = rng(3);
+        for i in 0..500 {
+            let p = DVec3::new(rng.random(), rng.random(), rng.random()) * 3.0 - 1.5;
+            let exact = index.closest(p);
+            // Good, poor and out-of-range hints.
+            for near in [
+                exact.on.triangle as usize,
+                (i * 37) % m.triangles.len(),
+                usize::MAX,
+            ] {
+                let hinted = index.closest_near(p, near);
+                assert!(
+                    (hinted.distance - exact.distance).abs() < 1e-12,
+                    "{p} {near}"
+                );
+            }
+        }
+        let mut cropped = m.clone();
+        cropped.triangles.drain(0..10);
+        cropped.triangle_origins = (10..m.triangles.len() as u32).collect();
+        let c = counterparts(&cropped, &m).unwrap();
+        assert_eq!((c[0], c[5]), (10, 15));
+        let back = counterparts(&m, &cropped).unwrap();
+        assert_eq!((back[0], back[10]), (u32::MAX, 0));
+        assert!(counterparts(&grid(2, 2), &m).is_none());
     }
 }

@@ -3,7 +3,7 @@
 //! consistently oriented surface. For anything else the number means nothing, so, as the
 //! thesis prints "–", we report "not closed" with the reason.
 
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, TopologyCounts};
 use serde::Serialize;
 
 /// A mesh's volume, or why it has none.
@@ -68,6 +68,25 @@ fn edge_defects(mesh: &Mesh) -> (usize, usize, usize) {
 /// The signed volume if the mesh is closed and consistently oriented.
 pub fn volume(mesh: &Mesh) -> Volume {
     let (boundary_edges, non_manifold_edges, inconsistent_edges) = edge_defects(mesh);
+    volume_given_defects(mesh, boundary_edges, non_manifold_edges, inconsistent_edges)
+}
+
+/// [`volume`] with the edge counts a [`TopologyCounts`] already has (same definitions).
+pub fn volume_from_counts(mesh: &Mesh, counts: &TopologyCounts) -> Volume {
+    volume_given_defects(
+        mesh,
+        counts.boundary_edges,
+        counts.non_manifold_edges,
+        counts.inconsistent_edges,
+    )
+}
+
+fn volume_given_defects(
+    mesh: &Mesh,
+    boundary_edges: usize,
+    non_manifold_edges: usize,
+    inconsistent_edges: usize,
+) -> Volume {
     if mesh.triangles.is_empty() || boundary_edges + non_manifold_edges + inconsistent_edges > 0 {
         return Volume::NotClosed {
             boundary_edges,
@@ -90,7 +109,11 @@ pub fn volume(mesh: &Mesh) -> Volume {
 }
 
 pub fn compare(result: &Mesh, reference: &Mesh) -> VolumeChange {
-    let (result, reference) = (volume(result), volume(reference));
+    change(volume(result), volume(reference))
+}
+
+/// The change from `reference` to `result`.
+pub fn change(result: Volume, reference: Volume) -> VolumeChange {
     let change_percent = match (result.value(), reference.value()) {
         (Some(r), Some(v)) if v != 0.0 => Some(100.0 * (r - v) / v.abs()),
         _ => None,

@@ -1,0 +1,199 @@
+//! Surfaces with boundary (thesis ch. 4): the boundary loops are found (§4.1) and each is
+//! faired with the closed-curve algorithm (§4.3), its interior neighbours held still; the
+//! interior is then faired with the closed-surface algorithm with the boundary held still
+//! (§4.4), which is [`super::surface`] with boundary neighbours left out of `H̄`.
+//! As in all the thesis' experiments and the Matlab default (§4.5, App. B), the boundary is
+//! faired completely first, then the interior; the thesis found alternation unnecessary
+//! (§4.6.4).
+
+use super::curve::{self, CurveShape};
+use super::guards::{Fan, GuardCounts, Reference, guarded_move};
+use super::neighbourhood::Neighbourhood;
+use super::positive;
+use super::schedule::{self, Phase, PhaseParams, RunStats, Sweep};
+use crate::mesh::Topology;
+use glam::DVec3;
+
+/// Boundary walks shorter than this are held still. The curve step keeps a vertex on the
+/// rising branch of its curvature (§2.7.3): one sharper than 90° is moved to the other
+/// position with the same curvature, nearer its neighbours' midpoint. A regular polygon is
+/// a fixed point only when its angles are at least 90° (4 or more vertices; the thesis'
+/// "regular polygons are fixed points", §2.11.1, is wrong for the triangle, whose vertices
+/// jump inwards every iteration), and a small ragged hole has sharp corners everywhere:
+/// measured on james.obj, 3- to 6-vertex holes collapsed or blew up. Below 8 vertices a
+/// hole is a few edges across and has no noise a curve filter could remove.
+pub const MIN_CURVE_VERTICES: usize = 8;
+
+/// One boundary walk to fair as a curve.
+#[derive(Debug, Clone)]
+pub struct BoundaryCurve {
+    pub vertices: Vec<u32>,
+    pub closed: bool,
+    /// Per vertex of the walk: held still (non-manifold pinch, crease, high valence).
+    pub fixed: Vec<bool>,
+}
+
+/// The boundary walks of the mesh as curves. A closed walk is a closed curve; an open walk
+/// (only next to inconsistently oriented or non-manifold edges) is an open curve whose ends
+/// stay (§2.9). Walks of fewer than [`MIN_CURVE_VERTICES`] vertices are returned as `held`
+/// instead.
+pub fn boundary_curves(topo: &Topology, fixed: &[bool]) -> (Vec<BoundaryCurve>, Vec<u32>) {
+    let mut curves = Vec::new();
+    let mut held = Vec::new();
+    for chain in topo.boundary_chains() {
+        if chain.vertices.len() < MIN_CURVE_VERTICES {
+            held.extend_from_slice(&chain.vertices);
+            continue;
+        }
+        curves.push(BoundaryCurve {
+            fixed: chain.vertices.iter().map(|&v| fixed[v as usize]).collect(),
+            vertices: chain.vertices.clone(),
+            closed: chain.closed,
+        });
+    }
+    (curves, held)
+}
+
+/// Fairs one boundary curve in place in `positions` (the C sub-algorithm of §4.5). The
+/// thesis' curve order is Jacobi (§2.6.1): candidates come from the positions at the start
+/// of the iteration; they are then written one by one, each checked against its fan as it
+/// is at that moment, so no move flips or degenerates a triangle.
+pub fn fair_boundary_curve(
+    positions: &mut [DVec3],
+    nb: &Neighbourhood,
+    curve: &BoundaryCurve,
+    params: &PhaseParams,
+    epsilon: f64,
+    references: &[Reference],
+    guards: &mut GuardCounts,
+) -> RunStats {
+    let mut pts: Vec<DVec3> = curve
+        .vertices
+        .iter()
+        .map(|&v| positions[v as usize])
+        .collect();
+    // Thresholds relative to the mean edge length of the input curve (§2.11, App. A).
+    let scale = curve::mean_edge_length(&pts, curve.closed);
+    if !positive(scale) {
+        return RunStats::default();
+    }
+    let shape = CurveShape {
+        closed: curve.closed,
+        fixed: &curve.fixed,
+    };
+    let eps = epsilon / scale;
+    let n = pts.len();
+    let movable = (0..n)
+        .filter(|&i| !curve.fixed[i] && (curve.closed || (i > 0 && i + 1 < n)))
+        .count();
+    if movable == 0 {
+        return RunStats::default();
+    }
+    let mut buf = Vec::new();
+    let mut nbuf = Vec::new();
+    schedule::run(params, scale, |phase| {
+        let candidates = match phase {
+            Phase::Curvature => curve::curvature_sweep(&pts, shape, params.lambda, eps),
+            Phase::Nonuniformity => curve::nonuniformity_sweep(&pts, shape, params.lambda_u),
+        };
+        let (mut sum, mut max) = (0.0, 0.0f64);
+        for (i, candidate) in candidates.into_iter().enumerate() {
+            let v = curve.vertices[i] as usize;
+            let old = positions[v];
+            if candidate == old {
+                continue;
+            }
+            buf.clear();
+            buf.extend(nb.ring(v).iter().map(|&j| positions[j as usize]));
+            nbuf.clear();
+            nbuf.extend(nb.fan(v).iter().map(|&t| references[t as usize]));
+            let fan = Fan {
+                ring: &buf,
+                closed: nb.is_closed(v),
+                references: &nbuf,
+            };
+            let (p, g) = guarded_move(old, candidate, fan);
+            guards.record(g);
+            positions[v] = p;
+            pts[i] = p;
+            let d = (p - old).length();
+            sum += d;
+            max = max.max(d);
+        }
+        Sweep {
+            mean: sum / movable as f64,
+            max,
+            updates: movable,
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes;
+
+    #[test]
+    fn grid_has_one_closed_boundary_curve() {
+        let m = shapes::grid(4, 3);
+        let topo = m.topology();
+        let (curves, held) = boundary_curves(&topo, &vec![false; m.positions.len()]);
+        assert_eq!(curves.len(), 1);
+        assert!(curves[0].closed);
+        assert_eq!(curves[0].vertices.len(), 14);
+        assert!(held.is_empty());
+    }
+
+    #[test]
+    fn ragged_border_is_smoothed_without_flips() {
+        let mut m = shapes::grid(12, 12);
+        // Jag the border in-plane.
+        for (i, p) in m.positions.iter_mut().enumerate() {
+            let on_border = p.x == 0.0 || p.y == 0.0 || p.x == 12.0 || p.y == 12.0;
+            if on_border && i % 2 == 1 {
+                let inward = (DVec3::new(6.0, 6.0, 0.0) - *p).normalize();
+                *p += 0.3 * inward;
+            }
+        }
+        let topo = m.topology();
+        let nb = Neighbourhood::new(&topo);
+        let (curves, _) = boundary_curves(&topo, &vec![false; m.positions.len()]);
+        let before = m.positions.clone();
+        let mut guards = GuardCounts::default();
+        let params = PhaseParams {
+            max_iterations: 200,
+            ..PhaseParams::curve()
+        };
+        let normals = super::super::guards::triangle_references(&m, &topo, &m.positions);
+        let stats = fair_boundary_curve(
+            &mut m.positions,
+            &nb,
+            &curves[0],
+            &params,
+            1e-4,
+            &normals,
+            &mut guards,
+        );
+        assert!(stats.iterations > 0);
+        assert_eq!(
+            super::super::guards::turned_over(&m, &normals, &m.positions).0,
+            0
+        );
+        // The jag (the alternating part of the second difference across the bottom side)
+        // is gone; what remains is the rounding of the corners.
+        let v = |i: usize, j: usize| m.positions[j * 13 + i];
+        let jag = |f: &dyn Fn(usize) -> f64| {
+            (2..11)
+                .map(|i| {
+                    let s = if i % 2 == 0 { 1.0 } else { -1.0 };
+                    s * (f(i) - 0.5 * (f(i - 1) + f(i + 1)))
+                })
+                .sum::<f64>()
+                .abs()
+                / 9.0
+        };
+        let jag0 = jag(&|i| before[i].y);
+        let jag1 = jag(&|i| v(i, 0).y);
+        assert!(jag1 < 0.05 * jag0, "{jag0} -> {jag1}");
+    }
+}

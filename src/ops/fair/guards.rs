@@ -1,0 +1,343 @@
+//! Guards against the failures the thesis reports or implies (fairing.md §12):
+//! which vertices stay fixed (non-manifold, creases, very high valence), and the check
+//! that a move neither flips a triangle nor makes a zero-area or needle triangle (a move
+//! that would is shortened, then skipped, and counted).
+
+use super::neighbourhood::Neighbourhood;
+use super::positive;
+use crate::mesh::{Mesh, Topology};
+use glam::DVec3;
+use serde::Serialize;
+
+/// Quality `4√3·area / Σ edge²` (1 for an equilateral triangle, 0 for a degenerate one)
+/// below which a move may not push a triangle, unless it improves it.
+pub const MIN_QUALITY: f64 = 0.05;
+
+/// How far a step may turn a triangle from its orientation at the start of the step
+/// (unless it starts folded over against its neighbours). 45° so that two steps (`relax`
+/// then `fair`) together never turn a triangle over: measured on james.obj and the
+/// ggg_sfm scans, each step alone turned no triangle over with a 90° limit, but relax +
+/// fair together turned 34 to 99 triangles (mostly at the borders, whose curves are faired
+/// in 3D without regard to the surface) by more than 90°.
+pub const TILT_DEGREES: f64 = 45.0;
+const TILT_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// What a triangle may not turn away from in one step: its normal at the start of the step
+/// (zero = unknown, no limit), by 90°, or by [`TILT_DEGREES`] when `tight`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Reference {
+    pub normal: DVec3,
+    pub tight: bool,
+}
+
+/// Why the vertices that stay fixed do.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct FixedCounts {
+    /// No single fan (pinch, bowtie, non-manifold edge) or a triangle repeating a vertex:
+    /// the thesis assumes a manifold (§1.2.1, pitfall 28).
+    pub non_manifold: usize,
+    /// On an edge sharper than `feature_angle`.
+    pub crease: usize,
+    /// Valence above the limit, and their neighbours (the vase that lost its top, §3.8.1,
+    /// pitfall 25).
+    pub high_valence: usize,
+    /// Boundary vertices held because `boundary = "fixed"`, because their boundary walk is
+    /// open or shorter than 3 vertices, or because they are the ends of an open walk.
+    pub boundary: usize,
+}
+
+/// The default valence limit: 2.5 × the median valence of manifold interior vertices, at
+/// least 12. The vase's hub had about 5× the typical valence; face scans range from 3 to 30
+/// (§4.6.3), and a limit that low only fixes the few extreme hubs.
+pub fn default_valence_limit(nb: &Neighbourhood) -> u32 {
+    let mut valences: Vec<u32> = (0..nb.vertex_count())
+        .filter(|&v| nb.is_closed(v))
+        .map(|v| nb.ring(v).len() as u32)
+        .collect();
+    if valences.is_empty() {
+        return 12;
+    }
+    let mid = valences.len() / 2;
+    let (_, median, _) = valences.select_nth_unstable(mid);
+    ((*median as f64 * 2.5).ceil() as u32).max(12)
+}
+
+/// Marks vertices on edges whose dihedral angle exceeds `feature_angle` degrees
+/// (the angle between the two face normals, 0 for a flat edge).
+pub fn crease_vertices(mesh: &Mesh, topo: &Topology, feature_angle: f64) -> Vec<bool> {
+    let mut crease = vec![false; mesh.positions.len()];
+    let cos_limit = feature_angle.to_radians().cos();
+    for e in 0..topo.edge_count() as u32 {
+        let mut tris = topo.edge_triangles(e);
+        if tris.len() != 2 {
+            continue;
+        }
+        let (t0, t1) = (tris.next().unwrap(), tris.next().unwrap());
+        let (n0, n1) = (
+            mesh.triangle_cross(t0 as usize),
+            mesh.triangle_cross(t1 as usize),
+        );
+        let denom = n0.length() * n1.length();
+        if !positive(denom) {
+            continue;
+        }
+        // On an inconsistently oriented edge one normal is reversed.
+        let sign = if topo.is_inconsistent_edge(e) {
+            -1.0
+        } else {
+            1.0
+        };
+        if sign * n0.dot(n1) / denom < cos_limit {
+            for v in topo.edge_vertices(e) {
+                crease[v as usize] = true;
+            }
+        }
+    }
+    crease
+}
+
+/// What a proposed move would do to a triangle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MoveCheck {
+    Ok,
+    /// The normal would turn by more than 90° in this one move.
+    Flip,
+    /// The triangle would fall below [`MIN_QUALITY`] (and get worse): zero-area, needle.
+    Degenerate,
+}
+
+/// Squared quality, `(4√3·area / Σ edge²)² = 12 |N|² / (Σ edge²)²` from the cross product
+/// `N` and the corners (no square root: this runs for every triangle every iteration).
+#[inline]
+fn quality_squared(cross: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let sum = (b - a).length_squared() + (c - b).length_squared() + (a - c).length_squared();
+    if sum > 0.0 {
+        12.0 * cross.length_squared() / (sum * sum)
+    } else {
+        0.0
+    }
+}
+
+/// Checks triangle `(a, b, c)` → `(a2, b2, c2)`. Besides the single move, the triangle may
+/// not leave the cone of its [`Reference`], so no sequence of small moves within a step
+/// turns it over either.
+#[inline]
+pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) -> MoveCheck {
+    let n_old = (old[1] - old[0]).cross(old[2] - old[0]);
+    let n_new = (new[1] - new[0]).cross(new[2] - new[0]);
+    if n_old.length_squared() > 0.0 && n_new.dot(n_old) < 0.0 {
+        return MoveCheck::Flip;
+    }
+    if within_cone(n_old, reference) && !within_cone(n_new, reference) {
+        return MoveCheck::Flip;
+    }
+    let q_new = quality_squared(n_new, new[0], new[1], new[2]);
+    if q_new < MIN_QUALITY * MIN_QUALITY && q_new < quality_squared(n_old, old[0], old[1], old[2]) {
+        return MoveCheck::Degenerate;
+    }
+    MoveCheck::Ok
+}
+
+/// `n` is within the reference's cone; true when either vector is zero (an unknown
+/// reference has no cone; a degenerate triangle is the quality test's business).
+#[inline]
+fn within_cone(n: DVec3, reference: Reference) -> bool {
+    let d = n.dot(reference.normal);
+    if !reference.tight {
+        return d >= 0.0;
+    }
+    let cos2 = TILT_COS * TILT_COS;
+    d >= 0.0 && d * d >= cos2 * n.length_squared() * reference.normal.length_squared()
+}
+
+/// A fan as the guards see it: the ring positions, closed or open, and the references of
+/// its triangles `(a, ring[i], ring[i+1])` (empty = unknown).
+#[derive(Debug, Clone, Copy)]
+pub struct Fan<'a> {
+    pub ring: &'a [DVec3],
+    pub closed: bool,
+    pub references: &'a [Reference],
+}
+
+/// Checks moving the centre of a fan from `old` to `new`, its ring held still.
+pub fn check_fan(old: DVec3, new: DVec3, fan: Fan) -> MoveCheck {
+    let ring = fan.ring;
+    let n = ring.len();
+    let tris = if fan.closed { n } else { n.saturating_sub(1) };
+    let mut worst = MoveCheck::Ok;
+    for i in 0..tris {
+        let (p, q) = (ring[i], ring[(i + 1) % n]);
+        let reference = fan.references.get(i).copied().unwrap_or_default();
+        match check_triangle([old, p, q], [new, p, q], reference) {
+            MoveCheck::Ok => {}
+            MoveCheck::Flip => return MoveCheck::Flip,
+            MoveCheck::Degenerate => worst = MoveCheck::Degenerate,
+        }
+    }
+    worst
+}
+
+/// How a guarded move ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Guarded {
+    Full,
+    /// Shortened because the full move would have flipped / degenerated a triangle.
+    Shortened(MoveCheck),
+    /// Skipped: even a quarter of the move was unsafe.
+    Skipped(MoveCheck),
+}
+
+/// The move from `old` towards `candidate`, shortened to 1/2 or 1/4 if the full move is
+/// unsafe for the fan, skipped if all are.
+pub fn guarded_move(old: DVec3, candidate: DVec3, fan: Fan) -> (DVec3, Guarded) {
+    if !candidate.is_finite() {
+        return (old, Guarded::Skipped(MoveCheck::Degenerate));
+    }
+    let first = check_fan(old, candidate, fan);
+    if first == MoveCheck::Ok {
+        return (candidate, Guarded::Full);
+    }
+    for f in [0.5, 0.25] {
+        let p = old + f * (candidate - old);
+        if check_fan(old, p, fan) == MoveCheck::Ok {
+            return (p, Guarded::Shortened(first));
+        }
+    }
+    (old, Guarded::Skipped(first))
+}
+
+/// Counts of guarded moves.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct GuardCounts {
+    /// Moves shortened or skipped because they would have flipped a triangle.
+    pub flips_avoided: u64,
+    /// Moves shortened or skipped because they would have made a zero-area or needle
+    /// triangle.
+    pub degenerate_avoided: u64,
+    /// Of the above, moves skipped entirely.
+    pub skipped: u64,
+}
+
+impl GuardCounts {
+    pub fn record(&mut self, g: Guarded) {
+        let reason = match g {
+            Guarded::Full => return,
+            Guarded::Shortened(r) => r,
+            Guarded::Skipped(r) => {
+                self.skipped += 1;
+                r
+            }
+        };
+        match reason {
+            MoveCheck::Flip => self.flips_avoided += 1,
+            MoveCheck::Degenerate => self.degenerate_avoided += 1,
+            MoveCheck::Ok => {}
+        }
+    }
+
+    pub fn add(&mut self, o: GuardCounts) {
+        self.flips_avoided += o.flips_avoided;
+        self.degenerate_avoided += o.degenerate_avoided;
+        self.skipped += o.skipped;
+    }
+}
+
+/// Every triangle's reference for a step starting at `positions`: its normal there, with
+/// the tight cone unless the triangle is folded over against its edge neighbours (its
+/// normal opposes the sum of theirs), which fairing should be free to undo.
+pub fn triangle_references(mesh: &Mesh, topo: &Topology, positions: &[DVec3]) -> Vec<Reference> {
+    let normals: Vec<DVec3> = (0..mesh.triangles.len())
+        .map(|t| {
+            let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
+            (b - a).cross(c - a)
+        })
+        .collect();
+    (0..mesh.triangles.len())
+        .map(|t| {
+            let mut around = DVec3::ZERO;
+            for e in topo.triangle_edges(t as u32) {
+                if e == crate::mesh::topology::NO_EDGE {
+                    continue;
+                }
+                for u in topo.edge_triangles(e) {
+                    if u as usize != t {
+                        around += normals[u as usize].normalize_or_zero();
+                    }
+                }
+            }
+            Reference {
+                normal: normals[t],
+                tight: normals[t].dot(around) >= 0.0,
+            }
+        })
+        .collect()
+}
+
+/// Triangles whose normal ends more than 90° from its reference, split into those that
+/// were folded over in the input (undone: `.1`) and the others (turned over: `.0`).
+pub fn turned_over(mesh: &Mesh, references: &[Reference], positions: &[DVec3]) -> (usize, usize) {
+    let mut counts = (0, 0);
+    for (t, r) in references.iter().enumerate() {
+        let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
+        if r.normal.length_squared() > 0.0 && (b - a).cross(c - a).dot(r.normal) < 0.0 {
+            if r.tight {
+                counts.0 += 1;
+            } else {
+                counts.1 += 1;
+            }
+        }
+    }
+    counts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flip_and_needle_are_caught() {
+        let ring = [DVec3::X, DVec3::Y, DVec3::NEG_X, DVec3::NEG_Y];
+        let fan = Fan {
+            ring: &ring,
+            closed: true,
+            references: &[],
+        };
+        let c = DVec3::ZERO;
+        assert_eq!(check_fan(c, DVec3::new(0.1, 0.1, 0.2), fan), MoveCheck::Ok);
+        // Past the ring: triangles flip.
+        assert_eq!(
+            check_fan(c, DVec3::new(1.5, 0.0, 0.0), fan),
+            MoveCheck::Flip
+        );
+        // Onto an edge's line: zero area.
+        assert_eq!(
+            check_fan(c, DVec3::new(0.5, 0.5, 0.0), fan),
+            MoveCheck::Degenerate
+        );
+        let (p, g) = guarded_move(c, DVec3::new(1.5, 0.0, 0.0), fan);
+        assert_eq!(g, Guarded::Shortened(MoveCheck::Flip));
+        assert!((p.x - 0.75).abs() < 1e-12);
+        let (p, g) = guarded_move(c, DVec3::new(9.0, 0.0, 0.0), fan);
+        assert_eq!((p, g), (c, Guarded::Skipped(MoveCheck::Flip)));
+        // Against the reference: turning 60° away from it leaves the tight cone.
+        let old = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        let new = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, 0.5, 0.75f64.sqrt())];
+        let interior = Reference {
+            normal: DVec3::Z,
+            tight: false,
+        };
+        let border = Reference {
+            tight: true,
+            ..interior
+        };
+        assert_eq!(
+            check_triangle(old, new, Reference::default()),
+            MoveCheck::Ok
+        );
+        assert_eq!(check_triangle(old, new, interior), MoveCheck::Ok);
+        assert_eq!(check_triangle(old, new, border), MoveCheck::Flip);
+        // 100° in steps of less than 90°: caught by the hemisphere.
+        let far = [DVec3::ZERO, DVec3::X, DVec3::new(0.0, -0.17, 0.98)];
+        assert_eq!(check_triangle(new, far, interior), MoveCheck::Flip);
+    }
+}

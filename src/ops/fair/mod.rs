@@ -1,0 +1,616 @@
+//! Curvature fairing and the non-uniformity pre-pass (spec/fairing.md; M. Matýsková,
+//! *Filtrace diskrétního povrchu*, MFF UK 2006): the recipe steps `relax` (non-uniformity
+//! only) and `fair` (both criteria).
+//!
+//! - [`curve`]: closed and open curves (ch. 2);
+//! - [`surface`]: closed surfaces (ch. 3);
+//! - [`boundary`]: surfaces with boundary (ch. 4): boundary loops faired as closed curves,
+//!   then the interior as a closed surface;
+//! - [`schedule`]: the `T_h`/`T_u` scheme and both stopping rules;
+//! - [`guards`]: fixed vertices and safe moves.
+//!
+//! Positions move; connectivity, wedges, texture coordinates and seams stay as they are.
+//!
+//! Two schedules. `thesis` is the method as written: Gauss–Seidel over the interior in
+//! index order, every quantity from the current positions (§3.5.1), with the given λ and
+//! iteration counts. `fast` (the default) reaches the same result in parallel: Jacobi
+//! sweeps (deterministic whatever the thread count) and time-scaled steps: `m` thesis
+//! iterations become one with `mλ`, `mλ_u` (see [`schedule`]); the convergence test is
+//! the thesis' displacement threshold scaled alike. Boundary curves are small and use the
+//! thesis' own (Jacobi) curve order in both.
+
+pub mod boundary;
+pub mod curve;
+pub mod guards;
+pub mod neighbourhood;
+pub mod schedule;
+pub mod surface;
+
+use crate::mesh::Mesh;
+use glam::DVec3;
+use guards::{FixedCounts, GuardCounts};
+use neighbourhood::Neighbourhood;
+use schedule::{Phase, PhaseParams, RunStats, StopIn};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// The largest per-iteration λ or λ_u the fast schedule scales up to. Measured: Jacobi
+/// sweeps at this step reach the thesis' Gauss–Seidel result at λ = 0.01 (see the tests).
+pub const FAST_MAX_STEP: f64 = 0.25;
+
+/// Which iteration order runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Schedule {
+    /// Exact thesis: Gauss–Seidel in index order with the given λ and counts.
+    Thesis,
+    /// Parallel Jacobi with time-scaled steps: the same result, much faster.
+    #[default]
+    Fast,
+}
+
+/// What happens at the boundary loops of a surface with boundary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum BoundaryMode {
+    /// Fair every loop with the curve algorithm first (ch. 4).
+    #[default]
+    Fair,
+    /// Hold the boundary still.
+    Fixed,
+}
+
+/// Parameters of the `fair` step. Names follow the thesis' symbols (§2.10, §4.5, App. B):
+/// unprefixed = the surface (interior, `S_*`), `c_` = the boundary curves (`C_*`).
+/// `stop` and `epsilon` are relative to the mean edge length of the input.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FairParams {
+    /// λ, curvature diffusion (3.21). Thesis recommendation 0.01 (§3.8.5).
+    pub lambda: f64,
+    /// λ_u, non-uniformity decay (3.18). 0.01 (§3.8.5).
+    pub lambda_u: f64,
+    /// T_h: curvature iterations per cycle. 50 (§3.8.4).
+    pub t_h: u32,
+    /// T_u: non-uniformity iterations per cycle. 50.
+    pub t_u: u32,
+    /// I: the most interior iterations, both criteria counted.
+    pub max_iterations: u32,
+    /// S: stop when an iteration's mean displacement < `stop` × mean edge length. 1e-5.
+    pub stop: f64,
+    /// Matlab `S_end_way`: `any` phase may stop the run, or only `curvature` phases.
+    pub stop_in: StopIn,
+    pub boundary: BoundaryMode,
+    /// C_λ: boundary curvature diffusion (2.15). 0.1 (§2.11.5, §4.6).
+    pub c_lambda: f64,
+    /// C_λu: boundary non-uniformity decay. 0.01.
+    pub c_lambda_u: f64,
+    pub c_t_h: u32,
+    pub c_t_u: u32,
+    /// C_maxIter.
+    pub c_max_iterations: u32,
+    /// C_sum: 1e-4 × the loop's mean edge length.
+    pub c_stop: f64,
+    /// Zero tolerance for curvature magnitudes, × 1/(mean edge length). 1e-4 (App. A/B).
+    pub epsilon: f64,
+    /// Degrees: vertices on sharper edges stay fixed. None = no crease protection (the
+    /// thesis rounds sharp edges off, §1.2.2).
+    pub feature_angle: Option<f64>,
+    /// Vertices of higher valence stay fixed (vase, §3.8.1). None = 2.5 × median, ≥ 12.
+    pub max_valence: Option<u32>,
+    pub schedule: Schedule,
+}
+
+impl Default for FairParams {
+    fn default() -> Self {
+        let s = PhaseParams::surface();
+        let c = PhaseParams::curve();
+        FairParams {
+            lambda: s.lambda,
+            lambda_u: s.lambda_u,
+            t_h: s.t_h,
+            t_u: s.t_u,
+            // The thesis ran 5000–10000 iterations on its extremely noisy reconstructions
+            // (§3.8, §4.6.3); full convergence is not wanted (§2.2) and the cap sets how much
+            // is faired. Measured on the real scans with the noise protocol (σ = 0.2 ×
+            // mean edge along normals: bunny, Lucy, Igea, facefuns), the distance to the
+            // clean scan is least at 400–2000 iterations and grows beyond (Lucy: 0.49 of
+            // the noisy distance at 400, 0.53 at 1000, 0.87 at 5000).
+            max_iterations: 1000,
+            stop: s.stop,
+            stop_in: StopIn::Any,
+            boundary: BoundaryMode::Fair,
+            c_lambda: c.lambda,
+            c_lambda_u: c.lambda_u,
+            c_t_h: c.t_h,
+            c_t_u: c.t_u,
+            // The thesis ran boundary curves to the threshold. On james.obj and the ggg_sfm
+            // scans the borders are as smooth after 200 iterations as after 10000 (mean
+            // turning angle 13° vs 12.5° on james), while later iterations only grind
+            // against the guards and change hole areas more.
+            c_max_iterations: 200,
+            c_stop: c.stop,
+            epsilon: 1e-4,
+            feature_angle: None,
+            max_valence: None,
+            schedule: Schedule::Fast,
+        }
+    }
+}
+
+/// Parameters of the `relax` step: the non-uniformity criterion alone on the interior,
+/// the thesis' pre-pass for badly triangulated scans (§4.6.3, pass 1: 50 iterations,
+/// `S_λu = 0.1`, boundary `C_λ = 0.1`, `C_λu = 0.01`, `C_maxIter = 50`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RelaxParams {
+    pub lambda_u: f64,
+    pub max_iterations: u32,
+    pub stop: f64,
+    pub boundary: BoundaryMode,
+    pub c_lambda: f64,
+    pub c_lambda_u: f64,
+    pub c_t_h: u32,
+    pub c_t_u: u32,
+    pub c_max_iterations: u32,
+    pub c_stop: f64,
+    pub epsilon: f64,
+    pub feature_angle: Option<f64>,
+    pub max_valence: Option<u32>,
+    pub schedule: Schedule,
+}
+
+impl Default for RelaxParams {
+    fn default() -> Self {
+        let c = PhaseParams::curve();
+        RelaxParams {
+            lambda_u: 0.1,
+            max_iterations: 50,
+            stop: 1e-5,
+            boundary: BoundaryMode::Fair,
+            c_lambda: c.lambda,
+            c_lambda_u: c.lambda_u,
+            c_t_h: c.t_h,
+            c_t_u: c.t_u,
+            c_max_iterations: 50,
+            c_stop: c.stop,
+            epsilon: 1e-4,
+            feature_angle: None,
+            max_valence: None,
+            schedule: Schedule::Fast,
+        }
+    }
+}
+
+/// Everything a run needs, whichever step asked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    pub surface: PhaseParams,
+    pub curve: PhaseParams,
+    pub boundary: BoundaryMode,
+    pub epsilon: f64,
+    pub feature_angle: Option<f64>,
+    pub max_valence: Option<u32>,
+    pub schedule: Schedule,
+}
+
+fn check_step(name: &str, x: f64) -> Result<(), String> {
+    if (0.0..1.0).contains(&x) {
+        Ok(())
+    } else {
+        Err(format!("{name} must be in [0, 1), got {x}"))
+    }
+}
+
+impl Plan {
+    pub fn validate(&self) -> Result<(), String> {
+        check_step("lambda", self.surface.lambda)?;
+        check_step("lambda_u", self.surface.lambda_u)?;
+        check_step("c_lambda", self.curve.lambda)?;
+        check_step("c_lambda_u", self.curve.lambda_u)?;
+        for (name, x) in [
+            ("stop", self.surface.stop),
+            ("c_stop", self.curve.stop),
+            ("epsilon", self.epsilon),
+        ] {
+            if !(x >= 0.0 && x.is_finite()) {
+                return Err(format!("{name} must be a finite number ≥ 0, got {x}"));
+            }
+        }
+        if let Some(a) = self.feature_angle
+            && !(positive(a) && a <= 180.0)
+        {
+            return Err(format!(
+                "feature_angle must be in (0, 180] degrees, got {a}"
+            ));
+        }
+        if self.max_valence.is_some_and(|v| v < 3) {
+            return Err("max_valence must be at least 3".into());
+        }
+        Ok(())
+    }
+}
+
+impl FairParams {
+    pub fn plan(&self) -> Plan {
+        Plan {
+            surface: PhaseParams {
+                lambda: self.lambda,
+                lambda_u: self.lambda_u,
+                t_h: self.t_h,
+                t_u: self.t_u,
+                max_iterations: self.max_iterations,
+                stop: self.stop,
+                stop_in: self.stop_in,
+            },
+            curve: PhaseParams {
+                lambda: self.c_lambda,
+                lambda_u: self.c_lambda_u,
+                t_h: self.c_t_h,
+                t_u: self.c_t_u,
+                max_iterations: self.c_max_iterations,
+                stop: self.c_stop,
+                stop_in: StopIn::Any,
+            },
+            boundary: self.boundary,
+            epsilon: self.epsilon,
+            feature_angle: self.feature_angle,
+            max_valence: self.max_valence,
+            schedule: self.schedule,
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        self.plan().validate()
+    }
+}
+
+impl RelaxParams {
+    pub fn plan(&self) -> Plan {
+        Plan {
+            // Only the non-uniformity criterion: T_h = 0 rather than λ = 0, which would
+            // still move vertices beyond the curvature maximum (fairing.md pitfall 13).
+            surface: PhaseParams {
+                lambda: 0.0,
+                lambda_u: self.lambda_u,
+                t_h: 0,
+                t_u: 1,
+                max_iterations: self.max_iterations,
+                stop: self.stop,
+                stop_in: StopIn::Any,
+            },
+            curve: PhaseParams {
+                lambda: self.c_lambda,
+                lambda_u: self.c_lambda_u,
+                t_h: self.c_t_h,
+                t_u: self.c_t_u,
+                max_iterations: self.c_max_iterations,
+                stop: self.c_stop,
+                stop_in: StopIn::Any,
+            },
+            boundary: self.boundary,
+            epsilon: self.epsilon,
+            feature_angle: self.feature_angle,
+            max_valence: self.max_valence,
+            schedule: self.schedule,
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        self.plan().validate()
+    }
+}
+
+/// The figures a `relax` or `fair` step reports.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct FairReport {
+    pub schedule: Schedule,
+    /// Thesis iterations per run iteration (1 for `thesis`).
+    pub time_scale: u32,
+    /// Interior iterations run (both criteria).
+    pub iterations: u32,
+    pub curvature_iterations: u32,
+    pub nonuniformity_iterations: u32,
+    /// True if the interior stopped on the displacement threshold, false on the cap.
+    pub converged: bool,
+    /// Boundary curves faired, and the most iterations any of them ran.
+    pub boundary_curves: usize,
+    pub boundary_iterations: u32,
+    /// Vertices the step may move (interior + boundary).
+    pub movable_vertices: usize,
+    /// Distance from input to output position, over the movable vertices.
+    pub mean_displacement: f64,
+    pub max_displacement: f64,
+    /// Moves shortened or skipped so as not to flip a triangle.
+    pub flips_avoided: u64,
+    /// Moves shortened or skipped so as not to make a zero-area or needle triangle.
+    pub degenerate_avoided: u64,
+    /// Of those, moves skipped entirely.
+    pub moves_skipped: u64,
+    /// Triangles whose normal ends more than 90° from its input direction (0: the guards
+    /// forbid it), not counting folds undone.
+    pub flipped_vs_input: usize,
+    /// Triangles folded over against their neighbours in the input that ended turned
+    /// back.
+    pub folds_undone: usize,
+    pub fixed: FixedCounts,
+    pub valence_limit: u32,
+    pub vertex_updates: u64,
+    pub updates_per_second: f64,
+    pub time_ms: f64,
+}
+
+/// The `fair` step: both criteria (thesis ch. 2–4).
+pub fn fair(mesh: &mut Mesh, params: &FairParams) -> FairReport {
+    run(mesh, &params.plan())
+}
+
+/// The `relax` step: the non-uniformity criterion only (§4.6.3, pass 1).
+pub fn relax(mesh: &mut Mesh, params: &RelaxParams) -> FairReport {
+    run(mesh, &params.plan())
+}
+
+/// Runs a plan on a mesh. Never fails: degenerate or non-manifold parts are held still.
+pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
+    let start = Instant::now();
+    let mut report = FairReport {
+        schedule: plan.schedule,
+        time_scale: 1,
+        ..FairReport::default()
+    };
+    let n = mesh.positions.len();
+    if n == 0 || mesh.triangles.is_empty() {
+        return report;
+    }
+    let topo = mesh.topology();
+    let nb = Neighbourhood::new(&topo);
+    let input = mesh.positions.clone();
+    let scale = mesh.mean_edge_length();
+    if !positive(scale) {
+        return report;
+    }
+
+    // Which vertices stay fixed, and why.
+    let mut fixed = vec![false; n];
+    let used: Vec<bool> = {
+        let mut u = vec![false; n];
+        for t in 0..mesh.triangles.len() {
+            for v in mesh.triangle_vertices(t) {
+                u[v as usize] = true;
+            }
+        }
+        u
+    };
+    for v in 0..n {
+        if used[v] && !nb.is_manifold(v) {
+            fixed[v] = true;
+            report.fixed.non_manifold += 1;
+        }
+    }
+    if let Some(angle) = plan.feature_angle {
+        for (v, c) in guards::crease_vertices(mesh, &topo, angle)
+            .into_iter()
+            .enumerate()
+        {
+            if c && !fixed[v] {
+                fixed[v] = true;
+                report.fixed.crease += 1;
+            }
+        }
+    }
+    let limit = plan
+        .max_valence
+        .unwrap_or_else(|| guards::default_valence_limit(&nb));
+    report.valence_limit = limit;
+    // A hub and its whole 1-ring: fixing the hub alone does not save the vase (§3.8.1):
+    // its neighbours' curvature is dominated by the hub's long triangles, whose squared
+    // areas pull them towards the hub, and the cap contracts around it (measured: top
+    // radius 0.845 → 0.55 after 5000 iterations with the hub fixed, kept with the ring
+    // fixed too). No real scan in ../shared/data has a vertex above the limit.
+    let hubs: Vec<usize> = (0..n)
+        .filter(|&v| nb.ring(v).len() > limit as usize)
+        .collect();
+    for v in hubs {
+        for u in std::iter::once(v).chain(nb.ring(v).iter().map(|&u| u as usize)) {
+            if !fixed[u] {
+                fixed[u] = true;
+                report.fixed.high_valence += 1;
+            }
+        }
+    }
+
+    let references = guards::triangle_references(mesh, &topo, &input);
+    let mut positions = std::mem::take(&mut mesh.positions);
+    let mut guard_counts = GuardCounts::default();
+    let mut movable_total = 0usize;
+
+    // C: boundary curves first, completely (§4.5, App. B default).
+    let (curves, held) = boundary::boundary_curves(&topo, &fixed);
+    let boundary_fair = plan.boundary == BoundaryMode::Fair
+        && plan.curve.max_iterations > 0
+        && plan.curve.t_h + plan.curve.t_u > 0;
+    if boundary_fair {
+        report.fixed.boundary += held.iter().filter(|&&v| !fixed[v as usize]).count();
+        for c in &curves {
+            let s = boundary::fair_boundary_curve(
+                &mut positions,
+                &nb,
+                c,
+                &plan.curve,
+                plan.epsilon,
+                &references,
+                &mut guard_counts,
+            );
+            report.boundary_iterations = report.boundary_iterations.max(s.iterations);
+            report.vertex_updates += s.vertex_updates;
+            movable_total += c
+                .fixed
+                .iter()
+                .enumerate()
+                .filter(|&(i, &f)| !f && (c.closed || (i > 0 && i + 1 < c.vertices.len())))
+                .count();
+        }
+        report.boundary_curves = curves.len();
+    } else {
+        report.fixed.boundary += (0..n)
+            .filter(|&v| nb.is_manifold(v) && !nb.is_closed(v) && !fixed[v])
+            .count();
+    }
+
+    // S: the interior, boundary held still (§4.4).
+    let movable: Vec<bool> = (0..n).map(|v| nb.is_closed(v) && !fixed[v]).collect();
+    let movable_count = movable.iter().filter(|&&m| m).count();
+    movable_total += movable_count;
+    let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
+        .map(|t| mesh.triangle_vertices(t))
+        .collect();
+    let interior = surface::Interior {
+        nb: &nb,
+        movable: &movable,
+        movable_count,
+        triangles: &triangles,
+        topo: &topo,
+        references: &references,
+        eps: plan.epsilon / scale,
+    };
+    let (params, m) = match plan.schedule {
+        Schedule::Thesis => (plan.surface, 1),
+        Schedule::Fast => {
+            let m = plan.surface.fast_time_scale(FAST_MAX_STEP);
+            (plan.surface.time_scaled(m), m)
+        }
+    };
+    report.time_scale = m;
+    let mut scratch = surface::FastScratch::default();
+    let stats: RunStats = if movable_count == 0 {
+        RunStats::default()
+    } else {
+        schedule::run(&params, scale, |phase| match (plan.schedule, phase) {
+            (Schedule::Thesis, Phase::Curvature) => surface::thesis_curvature_sweep(
+                &mut positions,
+                &interior,
+                params.lambda,
+                &mut guard_counts,
+            ),
+            (Schedule::Thesis, Phase::Nonuniformity) => surface::thesis_nonuniformity_sweep(
+                &mut positions,
+                &interior,
+                params.lambda_u,
+                &mut guard_counts,
+            ),
+            (Schedule::Fast, Phase::Curvature) => surface::fast_curvature_sweep(
+                &mut positions,
+                &interior,
+                params.lambda,
+                &mut guard_counts,
+                &mut scratch,
+            ),
+            (Schedule::Fast, Phase::Nonuniformity) => surface::fast_nonuniformity_sweep(
+                &mut positions,
+                &interior,
+                params.lambda_u,
+                &mut guard_counts,
+                &mut scratch,
+            ),
+        })
+    };
+    mesh.positions = positions;
+
+    report.iterations = stats.iterations;
+    report.curvature_iterations = stats.curvature_iterations;
+    report.nonuniformity_iterations = stats.nonuniformity_iterations;
+    report.converged = stats.stopped_by_displacement;
+    report.vertex_updates += stats.vertex_updates;
+    report.movable_vertices = movable_total;
+    let (sum, max) = displacement(&input, &mesh.positions);
+    report.mean_displacement = if movable_total > 0 {
+        sum / movable_total as f64
+    } else {
+        0.0
+    };
+    report.max_displacement = max;
+    report.flips_avoided = guard_counts.flips_avoided;
+    report.degenerate_avoided = guard_counts.degenerate_avoided;
+    report.moves_skipped = guard_counts.skipped;
+    (report.flipped_vs_input, report.folds_undone) =
+        guards::turned_over(mesh, &references, &mesh.positions);
+    let secs = start.elapsed().as_secs_f64();
+    report.time_ms = secs * 1e3;
+    report.updates_per_second = if secs > 0.0 {
+        report.vertex_updates as f64 / secs
+    } else {
+        0.0
+    };
+    tracing::debug!(?report, "fairing done");
+    report
+}
+
+/// `x > 0`, false for NaN: degenerate-geometry tests written so that NaN counts as
+/// degenerate.
+#[inline]
+pub(crate) fn positive(x: f64) -> bool {
+    x > 0.0
+}
+
+/// Sum and max of the per-vertex distances.
+fn displacement(a: &[DVec3], b: &[DVec3]) -> (f64, f64) {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (*p - *q).length())
+        .fold((0.0, 0.0f64), |(s, m), d| (s + d, m.max(d)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::recipe::{Recipe, Step};
+    use std::path::Path;
+
+    #[test]
+    fn recipe_steps_parse_with_thesis_names() {
+        let r = Recipe::from_toml(
+            "[[step]]\nkind = \"relax\"\n\n[[step]]\nkind = \"fair\"\nlambda = 0.01\nlambda_u = 0.001\nt_h = 30\nt_u = 70\nmax_iterations = 500\nstop = 1e-5\nboundary = \"fixed\"\nfeature_angle = 60.0\nschedule = \"thesis\"\n",
+            Path::new("r.toml"),
+        )
+        .unwrap();
+        assert_eq!(r.steps[0], Step::Relax(RelaxParams::default()));
+        let Step::Fair(p) = &r.steps[1] else {
+            panic!("not fair")
+        };
+        assert_eq!((p.t_h, p.t_u, p.max_iterations), (30, 70, 500));
+        assert_eq!(p.boundary, BoundaryMode::Fixed);
+        assert_eq!(p.schedule, Schedule::Thesis);
+        assert_eq!(p.feature_angle, Some(60.0));
+    }
+
+    #[test]
+    fn bad_parameters_are_errors() {
+        for bad in [
+            "lambda = 1.5",
+            "lambda_u = -0.1",
+            "feature_angle = 0.0",
+            "stop = -1.0",
+            "sigma = 2.0",
+            "schedule = \"quick\"",
+        ] {
+            let text = format!("[[step]]\nkind = \"fair\"\n{bad}\n");
+            assert!(
+                Recipe::from_toml(&text, Path::new("r.toml")).is_err(),
+                "{bad}"
+            );
+        }
+    }
+
+    #[test]
+    fn empty_and_degenerate_meshes_do_nothing() {
+        let mut m = Mesh::default();
+        let r = fair(&mut m, &FairParams::default());
+        assert_eq!(r.iterations, 0);
+        let mut m = crate::mesh::shapes::grid(1, 1);
+        for p in m.positions.iter_mut() {
+            *p = DVec3::ZERO;
+        }
+        let r = fair(&mut m, &FairParams::default());
+        assert_eq!(r.iterations, 0);
+    }
+}

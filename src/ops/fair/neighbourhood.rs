@@ -1,0 +1,167 @@
+//! The ordered 1-rings the thesis' formulas need (§3.4: neighbours in cyclic fan order),
+//! packed for fast sweeps, with the relative orientation of neighbouring fans used by the
+//! sign reconstruction (§3.6.2: "the neighbourhood of every neighbour oriented
+//! consistently with the neighbourhood of a").
+//!
+//! The rings come from adjacency (`Topology::ordered_ring`), not from the stored winding,
+//! so a non-orientable or inconsistently wound mesh still gets a valid local orientation
+//! (fairing.md pitfall 17).
+
+use crate::mesh::Topology;
+use rayon::prelude::*;
+
+#[derive(Debug, Clone, Default)]
+pub struct Neighbourhood {
+    /// CSR offsets into `ring`, one row per vertex (empty for vertices without a ring).
+    offsets: Vec<u32>,
+    ring: Vec<u32>,
+    /// CSR of the fan triangles: `fan[i]` has corners `v`, `ring[i]`, `ring[i + 1]`.
+    fan_offsets: Vec<u32>,
+    fan: Vec<u32>,
+    /// Per ring slot: +1 if the neighbour's closed ring runs the same way round the
+    /// triangles they share as this ring, −1 if opposite, 0 if the neighbour has no closed
+    /// ring (boundary, non-manifold: excluded from H̄, (4.1)–(4.3)).
+    orient: Vec<i8>,
+    /// The vertex has a closed fan: a manifold interior vertex.
+    closed: Vec<bool>,
+    /// The vertex has an ordered ring (closed or open): it is manifold.
+    manifold: Vec<bool>,
+}
+
+impl Neighbourhood {
+    pub fn new(topo: &Topology) -> Self {
+        let n = topo.vertex_count();
+        let rings: Vec<Option<crate::mesh::OrderedRing>> = (0..n as u32)
+            .into_par_iter()
+            .map(|v| topo.ordered_ring(v))
+            .collect();
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0u32);
+        let mut fan_offsets = offsets.clone();
+        let mut ring = Vec::new();
+        let mut fan = Vec::new();
+        let mut closed = vec![false; n];
+        let mut manifold = vec![false; n];
+        for (v, r) in rings.into_iter().enumerate() {
+            if let Some(r) = r {
+                ring.extend_from_slice(&r.vertices);
+                fan.extend_from_slice(&r.triangles);
+                closed[v] = r.closed;
+                manifold[v] = true;
+            }
+            offsets.push(ring.len() as u32);
+            fan_offsets.push(fan.len() as u32);
+        }
+        let mut nb = Neighbourhood {
+            offsets,
+            ring,
+            fan_offsets,
+            fan,
+            orient: Vec::new(),
+            closed,
+            manifold,
+        };
+        let per_vertex: Vec<Vec<i8>> = (0..n)
+            .into_par_iter()
+            .map(|v| {
+                let r = nb.ring(v);
+                (0..r.len())
+                    .map(|i| {
+                        if nb.closed[v] {
+                            nb.relative_orientation(v as u32, r[i], r[(i + 1) % r.len()])
+                        } else {
+                            0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        nb.orient = per_vertex.concat();
+        nb
+    }
+
+    /// Orientation of `j`'s ring relative to `v`'s, where `next` follows `j` in `v`'s ring.
+    /// In `v`'s order the shared triangle runs `v → j → next`, i.e. `j → next → v`; `j`'s
+    /// ring agrees if `next` comes right before `v` in it.
+    fn relative_orientation(&self, v: u32, j: u32, next: u32) -> i8 {
+        let j = j as usize;
+        if !self.closed[j] {
+            return 0;
+        }
+        let rj = self.ring(j);
+        let m = rj.len();
+        let Some(pos) = rj.iter().position(|&x| x == v) else {
+            return 0;
+        };
+        if rj[(pos + m - 1) % m] == next {
+            1
+        } else if rj[(pos + 1) % m] == next {
+            -1
+        } else {
+            0
+        }
+    }
+
+    pub fn vertex_count(&self) -> usize {
+        self.closed.len()
+    }
+
+    #[inline]
+    pub fn ring(&self, v: usize) -> &[u32] {
+        &self.ring[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+    }
+
+    /// The fan triangles of `v`, in ring order (one fewer than the ring when open).
+    #[inline]
+    pub fn fan(&self, v: usize) -> &[u32] {
+        &self.fan[self.fan_offsets[v] as usize..self.fan_offsets[v + 1] as usize]
+    }
+
+    #[inline]
+    pub fn orientations(&self, v: usize) -> &[i8] {
+        &self.orient[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+    }
+
+    /// A manifold interior vertex (closed fan).
+    #[inline]
+    pub fn is_closed(&self, v: usize) -> bool {
+        self.closed[v]
+    }
+
+    /// A manifold vertex (closed or open fan).
+    #[inline]
+    pub fn is_manifold(&self, v: usize) -> bool {
+        self.manifold[v]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes;
+
+    #[test]
+    fn consistent_mesh_has_agreeing_orientations() {
+        let m = shapes::uv_sphere(1.0, 6, 8);
+        let nb = Neighbourhood::new(&m.topology());
+        for v in 0..nb.vertex_count() {
+            assert!(nb.is_closed(v));
+            assert!(nb.orientations(v).iter().all(|&o| o == 1), "{v}");
+        }
+    }
+
+    #[test]
+    fn flipped_triangle_is_detected_through_adjacency() {
+        let mut m = shapes::uv_sphere(1.0, 6, 8);
+        // Reverse one triangle's winding: its neighbours' fans disagree with its corners'.
+        let t = 20;
+        m.triangles[t].swap(1, 2);
+        let nb = Neighbourhood::new(&m.topology());
+        let [a, b, _] = m.triangle_vertices(t);
+        // Every vertex still has a closed ring, and orientation flags are ±1.
+        assert!((0..nb.vertex_count()).all(|v| nb.is_closed(v)));
+        let ra = nb.ring(a as usize);
+        let slot = ra.iter().position(|&x| x == b).unwrap();
+        assert!(nb.orientations(a as usize)[slot].abs() == 1);
+    }
+}

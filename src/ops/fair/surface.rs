@@ -1,0 +1,719 @@
+//! Closed surfaces (thesis ch. 3): the squared-area curvature vector, the reconstruction of
+//! its sign by local orientation, the step along the fixed line that gives a vertex the
+//! diffused curvature magnitude, and the non-uniformity vector and step.
+//!
+//! Everything here works on one vertex and its ordered closed 1-ring `a_1..a_n` (the fan
+//! triangles are `(a, a_i, a_{i+1})`), with the other vertices held still, as the thesis
+//! derives it. Positions are taken relative to the vertex (`x_i = a_i - a`): the formulas
+//! are translation invariant and this keeps them accurate far from the origin.
+
+use super::guards::{
+    Fan, GuardCounts, Guarded, MoveCheck, Reference, check_triangle, guarded_move,
+};
+use super::neighbourhood::Neighbourhood;
+use super::positive;
+use super::schedule::Sweep;
+use crate::mesh::Topology;
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+/// Curvature of one vertex with a closed fan (§3.6.1, eqs. 3.13, 3.19, 3.20).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct VertexCurvature {
+    /// The curvature vector **H** (3.13). It points away from the neighbours' side at a
+    /// convex vertex (outward), see [`curvature`].
+    pub vector: DVec3,
+    /// `H = ‖H‖`.
+    pub magnitude: f64,
+    /// `a* − a`: the position that minimises the sum of squared areas (`B⁻¹ b`, §3.6.1),
+    /// relative to the vertex. `None` when **B** is singular (a degenerate fan), which
+    /// makes the step (3.28) undefined.
+    pub to_minimiser: Option<DVec3>,
+    /// `P = g / (g + d)` of (3.31), in [0, 1]: one minus the ratio of the smallest
+    /// reachable sum of squared areas to the current one.
+    pub p: f64,
+}
+
+/// Curvature vector and step data at vertex `a` with closed ring `ring` (positions).
+///
+/// Thesis (3.13): `H = 3/2 · Σ B_i (a − a_i) / Σ (a − a_i)ᵀ B_i (a − a_i)` with
+/// `B_i = b_i² E − b_i b_iᵀ`, `b_i = a_i − a_{i+1}`.
+///
+/// Factor: the thesis' (3.8) writes `3/2 · ∇ΣA_i² / ΣA_i²`, which is twice (3.13) when the
+/// gradient is carried through (fairing.md §3.2, pitfall 1). (3.13) is the one with
+/// `H = 1/r` on regular polyhedra, as §3.3.1 states, so (3.13) is implemented. The factor
+/// does not change the motion, only reported values and the zero test.
+///
+/// Direction: the thesis (§3.3.1) says **H** points into the centre of a regular
+/// polyhedron; (3.13) points outward (pitfall 2). Irrelevant to the algorithm, which only
+/// uses signs relative to a local orientation.
+pub fn curvature(a: DVec3, ring: &[DVec3]) -> VertexCurvature {
+    let n = ring.len();
+    let mut bmat = DMat3::ZERO;
+    // b' = Σ B_i x_i and c' = Σ x_iᵀ B_i x_i with x_i = a_i − a (the substitutions of
+    // §3.6.1 in coordinates centred on a, where `â = B·0 − b' = −b'`).
+    let mut bvec = DVec3::ZERO;
+    let mut c = 0.0;
+    for i in 0..n {
+        let xi = ring[i] - a;
+        let bi = ring[i] - ring[(i + 1) % n];
+        let b2 = bi.length_squared();
+        // B_i x = b_i² x − b_i (b_i · x)
+        let bx = b2 * xi - bi * bi.dot(xi);
+        bvec += bx;
+        c += xi.dot(bx);
+        bmat += DMat3::from_diagonal(DVec3::splat(b2))
+            - DMat3::from_cols(bi * bi.x, bi * bi.y, bi * bi.z);
+    }
+    // c' = 4 Σ A_i²: zero only when every fan triangle has zero area.
+    if !positive(c) || !c.is_finite() {
+        return VertexCurvature::default();
+    }
+    let a_hat = -bvec;
+    let vector = 1.5 * a_hat / c;
+    let magnitude = vector.length();
+    // B is regular as soon as two opposite edges are independent (§3.6.3 note); test its
+    // conditioning relative to its scale rather than det = 0.
+    let scale = bmat.x_axis.x + bmat.y_axis.y + bmat.z_axis.z;
+    let det = bmat.determinant();
+    let (to_minimiser, p) = if scale > 0.0 && det > 1e-12 * scale * scale * scale {
+        let astar = bmat.inverse() * bvec;
+        // g = âᵀ B⁻¹ â = b'ᵀ a*; d = c' − g ≥ 0 (the minimum of the quadratic).
+        let g = bvec.dot(astar).max(0.0);
+        (Some(astar), (g / c).clamp(0.0, 1.0))
+    } else {
+        (None, 0.0)
+    };
+    VertexCurvature {
+        vector,
+        magnitude,
+        to_minimiser,
+        p,
+    }
+}
+
+/// Side of the curvature vector `h` relative to the fan of `a` in ring order (§3.6.2,
+/// "Rekonstrukce znamének", eqs. 3.23–3.26): +1, −1, or 0 when it cannot be decided.
+///
+/// The fan triangle `t_i = (a, a_i, a_{i+1})` has normal `N_i = (a_i − a) × (a_{i+1} − a)`
+/// (the orientation (1.13) of the ring order). `h` is projected into every triangle's
+/// plane (3.23); the triangle whose planar angle at `a` contains the projection (3.24,
+/// 3.25) decides: `s = sign((h − p_i) · N_i)` (3.26), which equals `sign(h · N_i)`.
+///
+/// Choices where the thesis is silent (fairing.md pitfall 16): mixed-sign `(β, γ)` count
+/// as outside; exact comparisons use a relative tolerance; in the last case ("choose any
+/// p_i") we take the triangle where the sign is most decisive (largest `|ĥ · N̂_i|`),
+/// which is deterministic and never picks a triangle nearly parallel to `h`.
+/// Zero-area triangles are skipped (pitfall 23).
+pub fn side(a: DVec3, ring: &[DVec3], h: DVec3) -> f64 {
+    let n = ring.len();
+    let hlen2 = h.length_squared();
+    if !positive(hlen2) {
+        return 0.0;
+    }
+    // (category, key, sign): category 0 = inside, 1 = on an edge, 2 = elsewhere.
+    let mut best: Option<(u8, f64, f64)> = None;
+    for i in 0..n {
+        let r2 = ring[i] - a; // r_i2
+        let r1 = ring[(i + 1) % n] - a; // r_i1
+        let normal = r2.cross(r1);
+        let nn = normal.length_squared();
+        let scale = r1.length_squared() * r2.length_squared();
+        if !positive(nn - 1e-24 * scale) || !positive(scale) {
+            continue; // zero-area triangle: no plane
+        }
+        let hn = h.dot(normal);
+        let p = h - normal * (hn / nn); // (3.23)
+        // (3.25): [r1·r1 r1·r2; r2·r1 r2·r2] [β γ]ᵀ = [r1·p r2·p]ᵀ; det = |r1 × r2|².
+        let (r11, r12, r22) = (r1.length_squared(), r1.dot(r2), r2.length_squared());
+        let (q1, q2) = (r1.dot(p), r2.dot(p));
+        let beta = (q1 * r22 - q2 * r12) / nn;
+        let gamma = (q2 * r11 - q1 * r12) / nn;
+        let tol = 1e-9 * (beta.abs() + gamma.abs());
+        let pos = |x: f64| x > tol;
+        let zero = |x: f64| x.abs() <= tol;
+        let category = if pos(beta) && pos(gamma) {
+            0
+        } else if (zero(beta) && pos(gamma)) || (pos(beta) && zero(gamma)) {
+            1
+        } else {
+            2
+        };
+        // ‖h − p_i‖² / ‖h‖² = cos² of the angle between h and N_i.
+        let cos2 = hn * hn / (nn * hlen2);
+        let sign = if cos2 <= 1e-24 { 0.0 } else { hn.signum() };
+        // Inside / on an edge: minimise ‖h − p_i‖; elsewhere: the most decisive.
+        let key = if category == 2 { -cos2 } else { cos2 };
+        if best.is_none_or(|(bc, bk, _)| (category, key) < (bc, bk)) {
+            best = Some((category, key, sign));
+        }
+    }
+    best.map_or(0.0, |(_, _, s)| s)
+}
+
+/// The scaled offset `t*` from the minimiser that gives the ratio `r = H^{k+1}/H^k`
+/// (§3.6.3, eqs. 3.30–3.35), as the closed form of fairing.md §3.5.3.
+///
+/// With `t = 1 + α`, (3.30) reads `r = f(t) = t / (P t² + (1 − P))`. The thesis takes the
+/// root of the quadratic (3.31) inside `(α_min, α_max)` (3.32, 3.33), the rising branch
+/// `|t| < √((1−P)/P)`, and when there is no root the extremum whose ratio has the sign of
+/// `r` (3.34, 3.35). That whole rule is `t* = 2r(1−P) / (1 + √(1 − 4r²P(1−P)))` when the
+/// root exists, else `sign(r)·√((1−P)/P)`; the stable form never divides by a vanishing
+/// leading coefficient. (Checked against the literal quadratic + interval rule in the
+/// tests.)
+pub fn step_scale(p: f64, r: f64) -> f64 {
+    let (a, b) = (p, 1.0 - p);
+    let disc = 1.0 - 4.0 * r * r * a * b;
+    if disc >= 0.0 {
+        2.0 * r * b / (1.0 + disc.sqrt())
+    } else {
+        r.signum() * (b / a).sqrt()
+    }
+}
+
+/// The non-uniformity vector **U** of vertex `a` with closed ring `ring` (§3.7.1, eq. 3.36,
+/// i.e. 3.17): `U = 1/n Σ −P_{d_i}((a − a_{i−1}) + (a − a_{i+1})) / 2` with
+/// `d_i = a_{i+1} − a_{i−1}` and `P_{d_i}` the projection onto `d_i` (3.14).
+/// Terms with `d_i = 0` (coincident ring vertices) contribute nothing.
+pub fn nonuniformity(a: DVec3, ring: &[DVec3]) -> DVec3 {
+    let n = ring.len();
+    if n == 0 {
+        return DVec3::ZERO;
+    }
+    let mut sum = DVec3::ZERO;
+    for i in 0..n {
+        let prev = ring[(i + n - 1) % n];
+        let next = ring[(i + 1) % n];
+        let d = next - prev;
+        let dd = d.length_squared();
+        if !positive(dd) {
+            continue;
+        }
+        let w = (a - prev) + (a - next);
+        sum -= d * (d.dot(w) / (2.0 * dd));
+    }
+    sum / n as f64
+}
+
+// ---------------------------------------------------------------------------------------
+// Sweeps over the mesh: the thesis' Gauss–Seidel order and the fast parallel Jacobi order.
+// ---------------------------------------------------------------------------------------
+
+/// The interior a surface sweep works on.
+pub struct Interior<'a> {
+    pub nb: &'a Neighbourhood,
+    /// Vertices the surface step may move: a closed fan and not fixed by a guard.
+    pub movable: &'a [bool],
+    /// How many entries of `movable` are true (the divisor of the mean displacement).
+    pub movable_count: usize,
+    /// Every triangle's vertices, for the fast sweep's global flip check.
+    pub triangles: &'a [[u32; 3]],
+    /// For the triangles around a vertex.
+    pub topo: &'a Topology,
+    /// Every triangle's reference orientation (see [`Reference`]).
+    pub references: &'a [Reference],
+    /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
+    /// length: fairing.md pitfall 21, an absolute 1e-4 in 1/length would depend on units).
+    pub eps: f64,
+}
+
+/// The references of `v`'s fan triangles.
+#[inline]
+fn gather_references(it: &Interior, v: usize, buf: &mut Vec<Reference>) {
+    buf.clear();
+    buf.extend(it.nb.fan(v).iter().map(|&t| it.references[t as usize]));
+}
+
+#[inline]
+fn gather(positions: &[DVec3], ring: &[u32], buf: &mut Vec<DVec3>) {
+    buf.clear();
+    buf.extend(ring.iter().map(|&j| positions[j as usize]));
+}
+
+/// Curvature and its side in the vertex's own ring orientation.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sided {
+    c: VertexCurvature,
+    side: f64,
+}
+
+fn sided(positions: &[DVec3], nb: &Neighbourhood, v: usize, buf: &mut Vec<DVec3>) -> Sided {
+    gather(positions, nb.ring(v), buf);
+    let a = positions[v];
+    let c = curvature(a, buf);
+    let side = side(a, buf, c.vector);
+    Sided { c, side }
+}
+
+/// The new position of a vertex from its curvature and `H̄` (3.21, 3.22, 3.28, §3.6.4);
+/// `None` when it does not move.
+fn curvature_target(a: DVec3, own: &Sided, hbar: f64, lambda: f64, eps: f64) -> Option<DVec3> {
+    let h = own.c.magnitude;
+    if h < eps {
+        return None; // §3.6.4 case 1: H = 0 → α = 0
+    }
+    let to_min = own.c.to_minimiser?; // singular B (degenerate fan): no step defined
+    let target = (1.0 - lambda) * h + lambda * hbar;
+    // H^{k+1} = H^k: α = 0 is a root of (3.31) and the vertex stays. The thesis' rule takes
+    // the root on the rising branch (§3.6.3), which for a vertex beyond the curvature peak
+    // is the other one: the regular tetrahedron (P = 0.89) and octahedron (P = 0.67) would
+    // then move, although §3.8.1 reports every regular polyhedron unchanged. Correctness
+    // wins: a vertex whose curvature already has its target value does not move.
+    if (target - h).abs() < eps {
+        return None;
+    }
+    // §3.6.4 case 2: H^{k+1} = 0 → α = −1, the vertex jumps to a*.
+    let t = if target.abs() < eps {
+        0.0
+    } else {
+        step_scale(own.c.p, target / h)
+    };
+    // (3.28) a + α B⁻¹â = a* + (1 + α)(a − a*), with t = 1 + α; relative to a: (1 − t)(a* − a).
+    Some(a + (1.0 - t) * to_min)
+}
+
+/// `H̄` (3.22) restricted to neighbours with a closed fan (4.1–4.3): boundary and
+/// non-manifold neighbours have no curvature and are left out, and with none left
+/// `H̄ = 0`, which is (4.4). Transfer sign = own side × neighbour's side × relative
+/// orientation of their rings (§3.6.2: a negative own side flips all neighbour signs).
+/// Neighbours with sign 0 still count in `n` (pitfall 15).
+fn mean_neighbour_curvature(
+    own_side: f64,
+    ring: &[u32],
+    orient: &[i8],
+    mut neighbour: impl FnMut(usize) -> Sided,
+) -> f64 {
+    let mut sum = 0.0;
+    let mut count = 0u32;
+    for (&j, &o) in ring.iter().zip(orient) {
+        if o == 0 {
+            continue;
+        }
+        let s = neighbour(j as usize);
+        sum += own_side * s.side * o as f64 * s.c.magnitude;
+        count += 1;
+    }
+    if count == 0 { 0.0 } else { sum / count as f64 }
+}
+
+/// One curvature iteration in the thesis' order (§3.5.1): vertices one after another in
+/// index order, every quantity from the current positions (the neighbours' curvature
+/// included, fairing.md pitfall 10: the literal reading), the new position written back at
+/// once.
+pub fn thesis_curvature_sweep(
+    positions: &mut [DVec3],
+    it: &Interior,
+    lambda: f64,
+    guards: &mut GuardCounts,
+) -> Sweep {
+    let mut buf = Vec::new();
+    let mut nbuf = Vec::new();
+    let mut rbuf = Vec::new();
+    let (mut sum, mut max) = (0.0, 0.0f64);
+    for v in 0..positions.len() {
+        if !it.movable[v] {
+            continue;
+        }
+        let own = sided(positions, it.nb, v, &mut buf);
+        let ring = it.nb.ring(v);
+        let hbar = mean_neighbour_curvature(own.side, ring, it.nb.orientations(v), |j| {
+            sided(positions, it.nb, j, &mut nbuf)
+        });
+        let a = positions[v];
+        let Some(candidate) = curvature_target(a, &own, hbar, lambda, it.eps) else {
+            continue;
+        };
+        gather(positions, ring, &mut buf);
+        gather_references(it, v, &mut rbuf);
+        let fan = Fan {
+            ring: &buf,
+            closed: true,
+            references: &rbuf,
+        };
+        let (p, g) = guarded_move(a, candidate, fan);
+        guards.record(g);
+        positions[v] = p;
+        let d = (p - a).length();
+        sum += d;
+        max = max.max(d);
+    }
+    Sweep {
+        mean: sum / it.movable_count.max(1) as f64,
+        max,
+        updates: it.movable_count,
+    }
+}
+
+/// One non-uniformity iteration in the thesis' order (§3.7, eq. 3.37 with β = λ_u).
+pub fn thesis_nonuniformity_sweep(
+    positions: &mut [DVec3],
+    it: &Interior,
+    lambda_u: f64,
+    guards: &mut GuardCounts,
+) -> Sweep {
+    let mut buf = Vec::new();
+    let mut rbuf = Vec::new();
+    let (mut sum, mut max) = (0.0, 0.0f64);
+    for v in 0..positions.len() {
+        if !it.movable[v] {
+            continue;
+        }
+        gather(positions, it.nb.ring(v), &mut buf);
+        gather_references(it, v, &mut rbuf);
+        let a = positions[v];
+        let candidate = a + lambda_u * nonuniformity(a, &buf);
+        let fan = Fan {
+            ring: &buf,
+            closed: true,
+            references: &rbuf,
+        };
+        let (p, g) = guarded_move(a, candidate, fan);
+        guards.record(g);
+        positions[v] = p;
+        let d = (p - a).length();
+        sum += d;
+        max = max.max(d);
+    }
+    Sweep {
+        mean: sum / it.movable_count.max(1) as f64,
+        max,
+        updates: it.movable_count,
+    }
+}
+
+/// Reusable buffers of the fast sweeps (no allocation per iteration).
+#[derive(Debug, Default)]
+pub struct FastScratch {
+    curv: Vec<Sided>,
+    candidate: Vec<DVec3>,
+    new: Vec<DVec3>,
+    /// How many times a vertex's move was halved this iteration (3 = put back).
+    level: Vec<u8>,
+    /// Why it was first shortened.
+    why: Vec<MoveCheck>,
+}
+
+/// One curvature iteration of the fast schedule: Jacobi (every vertex from the positions
+/// at the start of the iteration), in parallel; deterministic whatever the thread count
+/// since every vertex is computed on its own and reductions run in a fixed order.
+pub fn fast_curvature_sweep(
+    positions: &mut [DVec3],
+    it: &Interior,
+    lambda: f64,
+    guards: &mut GuardCounts,
+    scratch: &mut FastScratch,
+) -> Sweep {
+    let nb = it.nb;
+    let old: &[DVec3] = positions;
+    scratch.curv.resize(old.len(), Sided::default());
+    scratch
+        .curv
+        .par_iter_mut()
+        .enumerate()
+        .for_each_init(Vec::new, |buf, (v, c)| {
+            *c = if nb.is_closed(v) {
+                sided(old, nb, v, buf)
+            } else {
+                Sided::default()
+            };
+        });
+    let curv = &scratch.curv;
+    scratch.candidate.resize(old.len(), DVec3::ZERO);
+    scratch
+        .candidate
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(v, out)| {
+            let a = old[v];
+            *out = a;
+            if !it.movable[v] {
+                return;
+            }
+            let own = &curv[v];
+            let hbar =
+                mean_neighbour_curvature(own.side, nb.ring(v), nb.orientations(v), |j| curv[j]);
+            if let Some(c) = curvature_target(a, own, hbar, lambda, it.eps)
+                && c.is_finite()
+            {
+                *out = c;
+            }
+        });
+    commit_parallel(positions, it, guards, scratch)
+}
+
+/// One non-uniformity iteration of the fast schedule (Jacobi, parallel).
+pub fn fast_nonuniformity_sweep(
+    positions: &mut [DVec3],
+    it: &Interior,
+    lambda_u: f64,
+    guards: &mut GuardCounts,
+    scratch: &mut FastScratch,
+) -> Sweep {
+    let nb = it.nb;
+    let old: &[DVec3] = positions;
+    scratch.candidate.resize(old.len(), DVec3::ZERO);
+    scratch
+        .candidate
+        .par_iter_mut()
+        .enumerate()
+        .for_each_init(Vec::new, |buf, (v, out)| {
+            let a = old[v];
+            *out = a;
+            if it.movable[v] {
+                gather(old, nb.ring(v), buf);
+                let c = a + lambda_u * nonuniformity(a, buf);
+                if c.is_finite() {
+                    *out = c;
+                }
+            }
+        });
+    commit_parallel(positions, it, guards, scratch)
+}
+
+/// Vertices per chunk of the fixed-order parallel reductions.
+const CHUNK: usize = 4096;
+
+/// Triangles that a move from `old` to `new` flips or degenerates, in index order.
+fn bad_triangles(
+    old: &[DVec3],
+    new: &[DVec3],
+    triangles: impl IndexedParallelIterator<Item = u32>,
+    it: &Interior,
+) -> Vec<(u32, MoveCheck)> {
+    triangles
+        .filter_map(|t| {
+            let [a, b, c] = it.triangles[t as usize].map(|v| v as usize);
+            if new[a] == old[a] && new[b] == old[b] && new[c] == old[c] {
+                return None;
+            }
+            let reference = it.references[t as usize];
+            match check_triangle(
+                [old[a], old[b], old[c]],
+                [new[a], new[b], new[c]],
+                reference,
+            ) {
+                MoveCheck::Ok => None,
+                bad => Some((t, bad)),
+            }
+        })
+        .collect()
+}
+
+/// Writes the candidate moves, shortened where they would flip or degenerate a triangle
+/// (the same rule as [`guarded_move`], applied to all vertices at once): every moved
+/// vertex of a bad triangle has its move halved, up to twice, then put back, and the
+/// triangles around it are checked again, until no triangle is bad. Each pass is a
+/// parallel filter with an ordered result, so the outcome does not depend on threads.
+fn commit_parallel(
+    positions: &mut [DVec3],
+    it: &Interior,
+    guards: &mut GuardCounts,
+    scratch: &mut FastScratch,
+) -> Sweep {
+    let n = positions.len();
+    let FastScratch {
+        candidate,
+        new,
+        level,
+        why,
+        ..
+    } = scratch;
+    new.clear();
+    new.extend_from_slice(candidate);
+    level.clear();
+    level.resize(n, 0);
+    why.clear();
+    why.resize(n, MoveCheck::Ok);
+    let old: &[DVec3] = positions;
+    let all = (0..it.triangles.len() as u32).into_par_iter();
+    let mut bad = bad_triangles(old, new, all, it);
+    let mut touched: Vec<u32> = Vec::new();
+    while !bad.is_empty() {
+        touched.clear();
+        for &(t, reason) in &bad {
+            for v in it.triangles[t as usize] {
+                let vi = v as usize;
+                if new[vi] != old[vi] {
+                    touched.push(v);
+                    if why[vi] == MoveCheck::Ok {
+                        why[vi] = reason;
+                    }
+                }
+            }
+        }
+        touched.sort_unstable();
+        touched.dedup();
+        for &v in &touched {
+            let vi = v as usize;
+            level[vi] += 1;
+            let f = match level[vi] {
+                1 => 0.5,
+                2 => 0.25,
+                _ => 0.0,
+            };
+            new[vi] = old[vi] + f * (candidate[vi] - old[vi]);
+        }
+        let mut around: Vec<u32> = touched
+            .iter()
+            .flat_map(|&v| it.topo.vertex_triangles(v))
+            .collect();
+        around.sort_unstable();
+        around.dedup();
+        bad = bad_triangles(old, new, around.into_par_iter(), it);
+    }
+    for (l, w) in level.iter().zip(why.iter()) {
+        match *l {
+            0 => {}
+            1 | 2 => guards.record(Guarded::Shortened(*w)),
+            _ => guards.record(Guarded::Skipped(*w)),
+        }
+    }
+    let partial: Vec<(f64, f64)> = new
+        .par_chunks(CHUNK)
+        .zip(positions.par_chunks(CHUNK))
+        .map(|(n, o)| {
+            n.iter().zip(o).fold((0.0, 0.0f64), |(s, m), (p, q)| {
+                let d = (*p - *q).length();
+                (s + d, m.max(d))
+            })
+        })
+        .collect();
+    let (sum, max) = partial
+        .into_iter()
+        .fold((0.0, 0.0f64), |(s, m), (a, b)| (s + a, m.max(b)));
+    positions.copy_from_slice(new);
+    Sweep {
+        mean: sum / it.movable_count.max(1) as f64,
+        max,
+        updates: it.movable_count,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hexagon_fan(height: f64) -> (DVec3, Vec<DVec3>) {
+        let ring = (0..6)
+            .map(|i| {
+                let t = std::f64::consts::TAU * i as f64 / 6.0;
+                DVec3::new(t.cos(), t.sin(), 0.0)
+            })
+            .collect();
+        (DVec3::new(0.0, 0.0, height), ring)
+    }
+
+    #[test]
+    fn pyramid_over_hexagon_matches_the_closed_form() {
+        // fairing.md §3.2 [derived]: H(h) = 3/2 · h / (h² + 3/4) over a unit hexagon.
+        for h in [0.1, 0.5, 3f64.sqrt() / 2.0, 2.0] {
+            let (a, ring) = hexagon_fan(h);
+            let c = curvature(a, &ring);
+            let expected = 1.5 * h / (h * h + 0.75);
+            assert!((c.magnitude - expected).abs() < 1e-12, "{h}");
+            assert!(c.vector.z > 0.0, "outward at a convex apex");
+            let astar = a + c.to_minimiser.unwrap();
+            assert!(astar.length() < 1e-12, "minimiser is the hexagon centre");
+        }
+    }
+
+    #[test]
+    fn planar_square_fan_slides_tangentially() {
+        // fairing.md §3.2: neighbours at (±1,0,0), (0,±1,0); H = 0, 0.288, 0.6, 0.732.
+        let ring = [DVec3::X, DVec3::Y, DVec3::NEG_X, DVec3::NEG_Y];
+        for (x, h) in [(0.0, 0.0), (0.2, 0.288), (0.5, 0.6), (0.8, 0.732)] {
+            let c = curvature(DVec3::new(x, 0.0, 0.0), &ring);
+            assert!((c.magnitude - h).abs() < 1e-3, "{x}: {}", c.magnitude);
+        }
+    }
+
+    #[test]
+    fn side_follows_orientation() {
+        let (a, ring) = hexagon_fan(0.3);
+        let c = curvature(a, &ring);
+        // Ring counter-clockwise seen from +z: fan normals point up, H points up.
+        assert_eq!(side(a, &ring, c.vector), 1.0);
+        assert_eq!(side(a, &ring, -c.vector), -1.0);
+        let reversed: Vec<_> = ring.iter().rev().copied().collect();
+        assert_eq!(side(a, &reversed, c.vector), -1.0);
+        assert_eq!(side(a, &ring, DVec3::ZERO), 0.0);
+    }
+
+    /// The thesis' literal rule (3.31–3.35): the quadratic's root inside (α_min, α_max),
+    /// or the extremum of matching sign when there is none.
+    fn literal_alpha(p: f64, h: f64, hn: f64) -> f64 {
+        let ratio = |alpha: f64| {
+            let t = 1.0 + alpha;
+            t / (p * t * t + 1.0 - p)
+        };
+        let g_over_d = p / (1.0 - p);
+        let root = (1.0 / g_over_d).sqrt();
+        let (amin, amax) = (-1.0 - root, -1.0 + root);
+        let (qa, qb, qc) = (hn * p, 2.0 * hn * p - h, hn - h);
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc >= 0.0 && qa != 0.0 {
+            let s = disc.sqrt();
+            for alpha in [(-qb - s) / (2.0 * qa), (-qb + s) / (2.0 * qa)] {
+                if alpha > amin && alpha < amax {
+                    return alpha;
+                }
+            }
+        }
+        let r = hn / h;
+        if r.signum() == ratio(amin).signum() {
+            amin
+        } else {
+            amax
+        }
+    }
+
+    #[test]
+    fn closed_form_root_matches_the_thesis_selection() {
+        let mut state = 12345u64;
+        let mut rand = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..20000 {
+            let p = 0.02 + 0.96 * rand();
+            let h = 0.1 + rand();
+            let hn = (rand() * 4.0 - 2.0) * h;
+            if hn.abs() < 1e-3 {
+                continue;
+            }
+            let alpha = step_scale(p, hn / h) - 1.0;
+            let literal = literal_alpha(p, h, hn);
+            assert!(
+                (alpha - literal).abs() < 1e-6 * (1.0 + literal.abs()),
+                "p {p} r {}: {alpha} vs {literal}",
+                hn / h
+            );
+        }
+    }
+
+    #[test]
+    fn step_reaches_the_target_curvature() {
+        let (a, ring) = hexagon_fan(0.4);
+        let c = curvature(a, &ring);
+        for r in [0.9, 0.5, 1.1, -0.3] {
+            let t = step_scale(c.p, r);
+            let astar = a + c.to_minimiser.unwrap();
+            let moved = astar + t * (a - astar);
+            let after = curvature(moved, &ring);
+            let signed = after.magnitude * after.vector.dot(c.vector).signum();
+            assert!((signed - r * c.magnitude).abs() < 1e-9, "{r}");
+        }
+    }
+
+    #[test]
+    fn nonuniformity_is_zero_at_the_centre_and_tangential() {
+        let (a, ring) = hexagon_fan(0.0);
+        assert!(nonuniformity(a, &ring).length() < 1e-15);
+        let off = DVec3::new(0.2, 0.1, 0.3);
+        let u = nonuniformity(off, &ring);
+        assert!(u.z.abs() < 1e-15, "parallel to the neighbours' plane");
+        assert!(u.dot(off) < 0.0, "points back to the centre");
+    }
+}
