@@ -80,8 +80,10 @@ pub struct CompareRow {
     /// Angle between face normals and the clean surface's, radians.
     pub angular_mean: Option<f64>,
     pub angular_rms: Option<f64>,
-    /// Colour difference of the texture at corresponding surface points (0–1 per channel,
-    /// RGB distance), when both meshes are textured.
+    /// Colour difference of the texture at corresponding surface points (RMS over R, G, B in
+    /// 0–255 levels), when both meshes are textured. Smoothing keeps the texture
+    /// coordinates, so a vertex that slides along the surface drags the texture with it:
+    /// this column shows that tangential drift.
     pub texture_mean: Option<f64>,
     /// Every figure, as the report carries them (JSON only).
     pub metrics: Option<FinalMetrics>,

@@ -196,6 +196,7 @@ impl SmoothGraph {
                     let p = [x[v[0] as usize], x[v[1] as usize], x[v[2] as usize]];
                     // Twice the area; the same for all three corners.
                     let sin = (p[1] - p[0]).cross(p[2] - p[0]).length();
+                    // Zero, or NaN for non-finite input: no weight from this triangle.
                     if sin.is_nan() || sin <= 0.0 {
                         continue;
                     }

@@ -498,8 +498,8 @@ pub struct SmoothReport {
     pub mean_neighbourhood: f64,
     /// Bilateral only: the share of those neighbours that came from the outermost ring
     /// searched. On igea at the defaults it is 6 % (and the ring beyond would add only
-    /// 0.005 %); above 15 % the ball probably reaches past the `rings`, and a warning asks
-    /// for more rings or a smaller radius.
+    /// 0.005 %); above 15 % (with `rings` ≥ 2) the ball probably reaches past the rings,
+    /// and a warning asks for more rings or a smaller radius.
     pub outer_ring_share: f64,
     /// Mean and largest distance a vertex moved, in model units and relative to the
     /// bounding-box diagonal.
@@ -625,7 +625,12 @@ pub fn smooth(mesh: &mut Mesh, params: &SmoothParams) -> SmoothReport {
     } else {
         0.0
     };
-    if outer_ring_share > 0.15 {
+    // With `rings = 1` every neighbour is in the outermost ring: the 1-ring was asked for.
+    let rings = match params.method {
+        SmoothMethod::Bilateral(p) => p.rings,
+        _ => 0,
+    };
+    if rings > 1 && outer_ring_share > 0.15 {
         tracing::warn!(
             outer_ring_share,
             "bilateral: the ρ-ball reaches beyond the searched rings; raise `rings` or lower `radius`"
