@@ -1,5 +1,6 @@
 //! scanmill: unattended processing of 3D scans. See DESIGN.md for the architecture.
 
+pub mod compare;
 pub mod config;
 pub mod daemon;
 pub mod mesh;

@@ -56,6 +56,32 @@ enum Command {
         #[arg(long, default_value_t = 0.0)]
         weld_tolerance: f64,
     },
+    /// Run several recipes on the same scan (optionally after adding the smoothing thesis'
+    /// noise) and print one table of how far each result is from the clean input
+    /// (see docs/smoothing.md).
+    Compare {
+        /// The scan, clean or raw: .obj or .ply, optionally .gz.
+        input: PathBuf,
+        /// Recipe files (TOML); each becomes one row, named by its file name.
+        #[arg(long, num_args = 1.., required = true)]
+        recipes: Vec<PathBuf>,
+        /// Add Gaussian noise along the vertex normals first, σ = SIGMA × mean edge length
+        /// (the thesis uses 0.2); figures are then against the clean input.
+        #[arg(long, value_name = "SIGMA")]
+        noise: Option<f64>,
+        /// Seed of the noise and of the surface samples.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Surface samples per side for the distances.
+        #[arg(long, default_value_t = scanmill::metrics::DEFAULT_SAMPLES)]
+        samples: usize,
+        /// Print JSON (every metric) instead of a text table.
+        #[arg(long, conflicts_with = "csv")]
+        json: bool,
+        /// Print CSV instead of a text table.
+        #[arg(long)]
+        csv: bool,
+    },
     /// The service and its audit/operations commands (see docs/service.md).
     #[command(flatten)]
     Service(scanmill::daemon::cli::ServiceCommand),
@@ -189,6 +215,73 @@ fn run_inspect(file: &Path, json: bool, weld_tolerance: f64) -> Result<(), (u8, 
     Ok(())
 }
 
+fn run_compare(
+    input: &Path,
+    recipe_paths: &[PathBuf],
+    noise: Option<f64>,
+    seed: u64,
+    samples: usize,
+    json: bool,
+    csv: bool,
+) -> Result<(), (u8, anyhow::Error)> {
+    use scanmill::compare::{CompareError, CompareOptions, NamedRecipe};
+    use scanmill::metrics::MetricsOptions;
+    use scanmill::metrics::noise::NoiseOptions;
+    let bad_argument = |message: String| (exit::CONFIG_ERROR, anyhow::anyhow!(message));
+    if let Some(sigma) = noise
+        && !(sigma.is_finite() && sigma >= 0.0)
+    {
+        return Err(bad_argument(format!(
+            "--noise must be a non-negative multiple of the mean edge length, got {sigma}"
+        )));
+    }
+    let metrics = MetricsOptions {
+        samples,
+        seed,
+        ..MetricsOptions::default()
+    };
+    metrics
+        .validate()
+        .map_err(|m| bad_argument(format!("--samples: {m}")))?;
+    let mut recipes = Vec::with_capacity(recipe_paths.len());
+    for path in recipe_paths {
+        let recipe = Recipe::from_path(path).map_err(|e| {
+            let code = match &e {
+                RecipeError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+                    exit::NO_INPUT
+                }
+                _ => exit::CONFIG_ERROR,
+            };
+            (code, e.into())
+        })?;
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        recipes.push(NamedRecipe { name, recipe });
+    }
+    let options = CompareOptions {
+        noise: noise.map(|sigma_factor| NoiseOptions {
+            sigma_factor,
+            seed,
+            ..NoiseOptions::default()
+        }),
+        metrics,
+    };
+    let table = scanmill::compare::run(input, &recipes, &options).map_err(|e| match e {
+        CompareError::Load(m) => (mesh_error_code(&m), anyhow::Error::from(m)),
+        other => (exit::FAILURE, other.into()),
+    })?;
+    if json {
+        println!("{}", table.to_json());
+    } else if csv {
+        print!("{}", table.to_csv());
+    } else {
+        print!("{}", table.to_text());
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Command::Service(service) = &cli.command {
@@ -211,6 +304,15 @@ fn main() -> ExitCode {
             json,
             weld_tolerance,
         } => run_inspect(file, *json, *weld_tolerance),
+        Command::Compare {
+            input,
+            recipes,
+            noise,
+            seed,
+            samples,
+            json,
+            csv,
+        } => run_compare(input, recipes, *noise, *seed, *samples, *json, *csv),
         Command::Service(_) => return ExitCode::FAILURE, // handled above
     };
     match result {

@@ -1,6 +1,9 @@
 //! Processing steps, one module each; every step is a function over the mesh.
 
 pub mod crop;
+pub mod decimate;
 pub mod fair;
 pub mod normals;
+pub mod seam_fix;
+pub mod smooth;
 pub mod subdivide;

@@ -6,8 +6,11 @@ pub mod runner;
 
 use crate::metrics::MetricsOptions;
 use crate::ops::crop::CropParams;
+use crate::ops::decimate::DecimateParams;
 use crate::ops::fair::{FairParams, RelaxParams};
 use crate::ops::normals::NormalsParams;
+use crate::ops::seam_fix::SeamFixParams;
+use crate::ops::smooth::SmoothParams;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -22,14 +25,6 @@ pub enum RecipeError {
     },
     #[error("{path}: {message}")]
     Parse { path: PathBuf, message: String },
-    #[error(
-        "{path}: line {line}: step kind `{kind}` is not implemented in this version of scanmill"
-    )]
-    NotImplemented {
-        path: PathBuf,
-        line: usize,
-        kind: &'static str,
-    },
     #[error("{path}: line {line}: step `{kind}`: {message}")]
     Invalid {
         path: PathBuf,
@@ -83,10 +78,6 @@ impl Default for InputSpec {
     }
 }
 
-/// Parameters of a step kind that this version does not implement yet. Parsed so that the
-/// error can name the step and its line rather than "unknown variant".
-pub type PendingParams = toml::Table;
-
 /// One processing step. The variant name is the recipe's `kind`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -94,9 +85,9 @@ pub enum Step {
     Crop(CropParams),
     Relax(RelaxParams),
     Fair(FairParams),
-    Smooth(PendingParams),
-    Decimate(PendingParams),
-    SeamFix(PendingParams),
+    Smooth(SmoothParams),
+    Decimate(DecimateParams),
+    SeamFix(SeamFixParams),
     Normals(NormalsParams),
 }
 
@@ -113,20 +104,15 @@ impl Step {
         }
     }
 
-    fn is_implemented(&self) -> bool {
-        matches!(
-            self,
-            Step::Normals(_) | Step::Crop(_) | Step::Relax(_) | Step::Fair(_)
-        )
-    }
-
     fn validate(&self) -> Result<(), String> {
         match self {
             Step::Normals(p) => p.validate(),
             Step::Crop(p) => p.validate(),
+            Step::Decimate(p) => p.validate(),
+            Step::SeamFix(p) => p.validate(),
             Step::Relax(p) => p.validate(),
             Step::Fair(p) => p.validate(),
-            _ => Ok(()),
+            Step::Smooth(p) => p.validate(),
         }
     }
 }
@@ -287,13 +273,6 @@ impl Recipe {
                 let line = error_line(text, spanned_range.end, &message).unwrap_or(line);
                 parse_error(line, message)
             })?;
-            if !step.is_implemented() {
-                return Err(RecipeError::NotImplemented {
-                    path: path.to_path_buf(),
-                    line,
-                    kind: step.kind(),
-                });
-            }
             step.validate().map_err(|message| RecipeError::Invalid {
                 path: path.to_path_buf(),
                 line,
@@ -365,18 +344,23 @@ mod tests {
     }
 
     #[test]
-    fn pending_kind_is_a_clear_error() {
-        let e = parse(
-            "[[step]]\nkind = \"normals\"\n\n[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\n",
+    fn decimate_and_seam_fix_parse_and_validate() {
+        let r = parse(
+            "[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\nmethod = \"face-collapse\"\n\n[[step]]\nkind = \"seam_fix\"\n",
         )
-        .unwrap_err();
-        match e {
-            RecipeError::NotImplemented { line, kind, .. } => {
-                assert_eq!(kind, "decimate");
-                assert_eq!(line, 4);
-            }
-            other => panic!("unexpected {other}"),
-        }
+        .unwrap();
+        assert_eq!(r.steps.len(), 2);
+        let e = parse("[[step]]\nkind = \"decimate\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("line 1") && e.contains("target_faces"), "{e}");
+        let e = parse("[[step]]\nkind = \"decimate\"\ntarget_faces = 10\nmethod = \"qem\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("face-collapse") && e.contains("cluster-keep"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -6,6 +6,7 @@ use crate::metrics::{self, MetricsOptions};
 use crate::ops;
 use crate::report::StepReport;
 use serde_json::Value;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Receives progress while a scan is processed. The command line draws a progress bar with
@@ -32,19 +33,26 @@ fn figures<T: serde::Serialize>(value: T) -> serde_json::Value {
     serde_json::to_value(value).expect("step figures always serialise")
 }
 
-/// Applies one step to the mesh and returns its figures.
-fn apply(step: &Step, mesh: &mut Mesh) -> Result<serde_json::Value, String> {
+/// Applies one step to the mesh and returns its figures. `input` is the mesh as loaded,
+/// kept only when a step needs it (`seam_fix` projects onto the input triangles).
+fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_json::Value, String> {
     match step {
         Step::Normals(p) => Ok(figures(ops::normals::recompute_normals(mesh, p))),
         Step::Crop(p) => ops::crop::crop(mesh, p)
             .map(figures)
             .map_err(|e| e.to_string()),
+        Step::Decimate(p) => {
+            let (out, report) = ops::decimate::decimate(mesh, p).map_err(|e| e.to_string())?;
+            *mesh = out;
+            Ok(figures(report))
+        }
+        Step::SeamFix(p) => {
+            let input = input.ok_or("seam_fix needs the loaded input mesh")?;
+            Ok(figures(ops::seam_fix::seam_fix(mesh, input, p)))
+        }
         Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
         Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
-        other => Err(format!(
-            "step kind `{}` is not implemented in this version",
-            other.kind()
-        )),
+        Step::Smooth(p) => Ok(figures(ops::smooth::smooth(mesh, p))),
     }
 }
 
@@ -151,6 +159,12 @@ fn run_steps_observed(
     after_step: &mut dyn FnMut(&Step, &Mesh),
 ) -> Result<Vec<StepReport>, StepError> {
     let mut reports = Vec::with_capacity(recipe.steps.len());
+    // The loaded input, for steps that refer back to it through `triangle_origins`.
+    let input: Option<Arc<Mesh>> = recipe
+        .steps
+        .iter()
+        .any(|s| matches!(s, Step::SeamFix(_)))
+        .then(|| Arc::new(mesh.clone()));
     for (i, step) in recipe.steps.iter().enumerate() {
         let before = recipe.step_metrics.contains(&(i + 1)).then(|| mesh.clone());
         progress.stage(first_stage + i, total_stages, step.kind());
@@ -158,7 +172,7 @@ fn run_steps_observed(
         let start = Instant::now();
         let span = tracing::info_span!("step", index = i + 1, kind = step.kind());
         let _guard = span.enter();
-        let figures = apply(step, mesh).map_err(|message| StepError {
+        let figures = apply(step, mesh, input.as_deref()).map_err(|message| StepError {
             index: i + 1,
             kind: step.kind(),
             message,

@@ -1,0 +1,76 @@
+//! Smoothing speed on the 269k-triangle igea scan: one iteration of each method (Taubin:
+//! one λ+μ pair, i.e. two passes), and the per-step setup (topology + CSR rows).
+//! Throughput is in vertex updates (smoothed vertices × passes); the target is at least
+//! 10 million per second on the project's 2-core machine.
+
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use scanmill::mesh::{LoadOptions, Mesh, ply};
+use scanmill::ops::smooth::{MethodName, SmoothParams, SmoothParamsFile, Smoother, Weights};
+use std::hint::black_box;
+use std::io::Read;
+use std::path::Path;
+
+const IGEA: &str = "../shared/data/untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz";
+
+fn load_igea() -> Option<Mesh> {
+    let gz = std::fs::read(IGEA).ok()?;
+    let mut bytes = Vec::new();
+    flate2::read::GzDecoder::new(&gz[..])
+        .read_to_end(&mut bytes)
+        .ok()?;
+    let options = LoadOptions {
+        check_textures: false,
+        ..Default::default()
+    };
+    Some(ply::read(Path::new(IGEA), &bytes, &options).ok()?.0)
+}
+
+fn one_iteration(method: MethodName, weights: Option<Weights>) -> SmoothParams {
+    SmoothParams::try_from(SmoothParamsFile {
+        method: Some(method),
+        iterations: Some(1),
+        weights,
+        ..Default::default()
+    })
+    .unwrap()
+}
+
+fn bench(c: &mut Criterion) {
+    let Some(mesh) = load_igea() else {
+        eprintln!("igea not found at {IGEA}; skipping");
+        return;
+    };
+    let mut group = c.benchmark_group("smooth igea 269k");
+    group.sample_size(20);
+    group.bench_function("setup (topology + rows)", |b| {
+        b.iter(|| Smoother::new(black_box(&mesh), &one_iteration(MethodName::Laplace, None)))
+    });
+    let cases = [
+        ("laplace", MethodName::Laplace, None),
+        (
+            "laplace cotangent",
+            MethodName::Laplace,
+            Some(Weights::Cotangent),
+        ),
+        ("hc", MethodName::Hc, None),
+        ("taubin (λ+μ pair)", MethodName::Taubin, None),
+        ("bilateral", MethodName::Bilateral, None),
+    ];
+    for (name, method, weights) in cases {
+        let smoother = Smoother::new(&mesh, &one_iteration(method, weights));
+        let passes = smoother.run(&mut mesh.positions.clone()).passes;
+        let updates = smoother.graph().smoothed_vertices() as u64 * u64::from(passes);
+        group.throughput(Throughput::Elements(updates));
+        group.bench_function(format!("{name}: one iteration"), |b| {
+            b.iter_batched_ref(
+                || mesh.positions.clone(),
+                |positions| smoother.run(positions),
+                BatchSize::LargeInput,
+            )
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,78 @@
+//! Edge collapse over the same wedge-aware quadrics and guards (spec/decimation.md §2.3,
+//! thesis §1.2.1, full-edge variant): a triangle's candidate is the cheapest of its three
+//! sides, so the lazy triangle heap of face collapse drives it unchanged.
+
+use super::Refusal;
+use super::face_collapse::LoopStats;
+use super::work::{Plan, Scratch, Work};
+
+fn sides<const M: usize>(work: &Work<M>, t: usize) -> [[u32; 2]; 3] {
+    let v = work.tv[t];
+    [[v[0], v[1]], [v[1], v[2]], [v[2], v[0]]]
+}
+
+/// The cheapest side of triangle `t` by the quick key that the placement rules allow.
+pub fn best_side<const M: usize>(work: &Work<M>, t: usize) -> Result<(usize, f64), Refusal> {
+    let mut best: Option<(usize, f64)> = None;
+    let mut cause = Refusal::Locked;
+    for (i, side) in sides(work, t).iter().enumerate() {
+        match work.quick_cost(side) {
+            Ok(cost) => {
+                if best.is_none_or(|(_, b)| cost < b) {
+                    best = Some((i, cost));
+                }
+            }
+            // Locked only if every side is (then it stays so until the triangle dies).
+            Err(c) if c != Refusal::Locked => cause = c,
+            Err(_) => {}
+        }
+    }
+    best.ok_or(cause)
+}
+
+/// Collapses the cheapest side of `t` that passes the guards.
+pub fn attempt<const M: usize>(
+    work: &mut Work<M>,
+    t: usize,
+    max_error: f64,
+    sc: &mut Scratch<M>,
+    stats: &mut LoopStats,
+) -> Result<Plan, Refusal> {
+    let all = sides(work, t);
+    let mut costs: [(f64, usize); 3] = [(f64::INFINITY, 0); 3];
+    let mut cause = Refusal::Link;
+    for (i, side) in all.iter().enumerate() {
+        match work.quick_cost(side) {
+            Ok(cost) => costs[i] = (cost, i),
+            Err(c) => cause = c,
+        }
+    }
+    costs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    for &(cost, i) in &costs {
+        if !cost.is_finite() {
+            break;
+        }
+        stats.evaluations += 1;
+        let plan = match work.evaluate(&all[i], sc) {
+            Ok(p) => p,
+            Err(c) => {
+                cause = c;
+                continue;
+            }
+        };
+        if plan.error > max_error {
+            cause = Refusal::MaxError;
+            continue;
+        }
+        if let Err(c) = work.check(&plan, sc) {
+            cause = c;
+            continue;
+        }
+        if plan.fallback {
+            stats.ill_conditioned += 1;
+        }
+        work.apply(&plan, sc);
+        return Ok(plan);
+    }
+    Err(cause)
+}

@@ -1,0 +1,1075 @@
+//! The working mesh of the collapse decimators (spec/decimation.md §4.2 `WedgeScene`, §12):
+//! unit-box-normalised f64 positions, wedges with their attributes and (3+m) quadrics,
+//! triangles of wedge indices, and per-vertex corner lists kept as linked lists so that a
+//! merge relinks in place (no allocation per collapse).
+//!
+//! One merge operation serves both face collapse (three vertices, §5.6) and edge collapse
+//! (two): [`Work::evaluate`] places the new vertex, [`Work::check`] runs the guards and
+//! [`Work::apply`] performs it.
+
+use super::guards::{
+    DEGENERATE_QUALITY, LinkScratch, LinkShape, SLIVER_QUALITY, VClass, link_shape, quality,
+    uv_area,
+};
+use super::quadric::{
+    AttrPart, Quadric, Reduced, Weights, cross, dense_condition_number, dot, sub,
+};
+use super::{BoundaryMode, Conditioning, Fallback, Refusal};
+use crate::mesh::{Index, Mesh, Wedge};
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+
+pub const NIL: u32 = u32::MAX;
+
+/// Settings of the merge machinery, resolved from the step parameters.
+#[derive(Debug, Clone, Copy)]
+pub struct Config {
+    pub boundary: BoundaryMode,
+    pub boundary_weight: f64,
+    pub conditioning: Conditioning,
+    pub max_condition: f64,
+    pub fallback: Fallback,
+    /// Cosine of the largest normal change a collapse may cause on a surviving triangle.
+    pub cos_max_normal_change: f64,
+    /// Run the guards (link condition, flips, degeneracy); off = thesis-literal.
+    pub guards: bool,
+}
+
+/// Where the merged vertex goes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Placement {
+    /// Minimiser of the wedge-aware quadric (§5.6 step 5).
+    Free,
+    /// At the position of S[i], which keeps its place and its wedges' attributes (a
+    /// fixed, seam or border vertex absorbing neighbours: a half-edge collapse onto it).
+    Anchor(usize),
+}
+
+/// A merge as evaluated: new position, cost (quadric value), error (RMS distance in
+/// normalised units) and whether the ill-conditioned fallback was used.
+#[derive(Debug, Clone, Copy)]
+pub struct Plan {
+    pub p: [f64; 3],
+    pub placement: Placement,
+    pub cost: f64,
+    pub error: f64,
+    pub fallback: bool,
+    /// The merged vertex's reduced position system.
+    pub red: Reduced,
+}
+
+/// Wedges of the merged vertices that end up as one wedge (thesis §5.6 step 3).
+#[derive(Debug, Clone, Copy)]
+pub struct Group<const M: usize> {
+    pub rep: u32,
+    /// Number of wedges merged into this group.
+    pub size: u32,
+    pub q: AttrPart<M>,
+    /// The wedge of S[i] in this group, or NIL.
+    pub at: [u32; 3],
+    pub attr: [f64; M],
+}
+
+/// Reusable buffers for one merge (one per thread during the parallel set-up).
+pub struct Scratch<const M: usize> {
+    pub s: [u32; 3],
+    pub ns: usize,
+    /// Corners at S of the triangles that survive (exactly one corner in S).
+    pub corners: Vec<u32>,
+    /// Triangles that the merge deletes (two or more corners in S).
+    pub dead: Vec<u32>,
+    lw: Vec<u32>,
+    lw_si: Vec<u8>,
+    lw_parent: Vec<u32>,
+    lw_group: Vec<u32>,
+    pub groups: Vec<Group<M>>,
+    link: Vec<(u32, u32)>,
+    link_sc: LinkScratch,
+    dense: Vec<Quadric<M>>,
+}
+
+impl<const M: usize> Default for Scratch<M> {
+    fn default() -> Self {
+        Scratch {
+            s: [NIL; 3],
+            ns: 0,
+            corners: Vec::with_capacity(64),
+            dead: Vec::with_capacity(8),
+            lw: Vec::with_capacity(16),
+            lw_si: Vec::with_capacity(16),
+            lw_parent: Vec::with_capacity(16),
+            lw_group: Vec::with_capacity(16),
+            groups: Vec::with_capacity(8),
+            link: Vec::with_capacity(64),
+            link_sc: LinkScratch::default(),
+            dense: Vec::new(),
+        }
+    }
+}
+
+impl<const M: usize> Scratch<M> {
+    fn local(&self, w: u32) -> usize {
+        self.lw.iter().position(|&x| x == w).unwrap_or(usize::MAX)
+    }
+    fn find(&mut self, mut i: usize) -> usize {
+        while self.lw_parent[i] as usize != i {
+            let p = self.lw_parent[i] as usize;
+            self.lw_parent[i] = self.lw_parent[p];
+            i = p;
+        }
+        i
+    }
+    /// The group a wedge of S belongs to.
+    pub fn group_of(&self, w: u32) -> &Group<M> {
+        &self.groups[self.lw_group[self.local(w)] as usize]
+    }
+}
+
+/// Vertex counts by class, for the report.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ClassCounts {
+    pub interior: usize,
+    pub border: usize,
+    pub seam: usize,
+    pub fixed: usize,
+}
+
+pub struct Work<'a, const M: usize> {
+    pub input: &'a Mesh,
+    pub center: DVec3,
+    /// Normalised = (p − center) · inv_scale; the largest box side becomes 1.
+    pub inv_scale: f64,
+    pub pos: Vec<[f64; 3]>,
+    pub moved: Vec<bool>,
+    pub class: Vec<VClass>,
+    /// Vertex has border edges.
+    pub border: Vec<bool>,
+    pub vfirst: Vec<u32>,
+    pub cnext: Vec<u32>,
+    /// Wedge indices of each triangle.
+    pub tris: Vec<[u32; 3]>,
+    /// Vertex indices of each triangle; `[NIL; 3]` once deleted.
+    pub tv: Vec<[u32; 3]>,
+    pub wvert: Vec<u32>,
+    pub wattr: Vec<[f64; M]>,
+    /// Unit normal of each input triangle (f32: only its direction is tested, and it is
+    /// read once per surviving triangle per collapse, so it should be compact).
+    pub onormal: Vec<[f32; 3]>,
+    /// Attribute part of each wedge quadric.
+    pub wq: Vec<AttrPart<M>>,
+    /// Position part of each vertex quadric, summed over its wedges and reduced (their
+    /// attribute blocks eliminated, §3.8).
+    pub vred: Vec<Reduced>,
+    pub wchanged: Vec<bool>,
+    pub live: usize,
+    pub w: Weights<M>,
+    pub has_uv: bool,
+    pub has_normals: bool,
+    pub cfg: Config,
+    pub classes: ClassCounts,
+}
+
+impl<'a, const M: usize> Work<'a, M> {
+    /// Builds the working mesh: normalised positions, corner lists, vertex classes and
+    /// the wedge quadrics (in parallel).
+    pub fn new(input: &'a Mesh, w: Weights<M>, cfg: Config) -> Self {
+        let has_uv = !input.texcoords.is_empty() && M >= 2;
+        let has_normals = !input.normals.is_empty() && (M == 3 || M == 5);
+        let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
+        let center = (lo + hi) * 0.5;
+        let extent = (hi - lo).max_element();
+        let inv_scale = if extent > 0.0 { 1.0 / extent } else { 1.0 };
+        let pos: Vec<[f64; 3]> = input
+            .positions
+            .par_iter()
+            .map(|&p| ((p - center) * inv_scale).to_array())
+            .collect();
+        let nv = pos.len();
+        let tris = input.triangles.clone();
+        let wvert: Vec<u32> = input.wedges.iter().map(|w| w.vertex).collect();
+        let wattr: Vec<[f64; M]> = input
+            .wedges
+            .par_iter()
+            .map(|wd| {
+                let mut a = [0.0; M];
+                let mut k = 0;
+                if has_uv {
+                    if let Some(t) = wd.texcoord {
+                        let uv = input.texcoords[t as usize];
+                        a[0] = uv.x;
+                        a[1] = uv.y;
+                    }
+                    k = 2;
+                }
+                if has_normals && let Some(n) = wd.normal {
+                    let n = input.normals[n as usize];
+                    a[k] = n.x;
+                    a[k + 1] = n.y;
+                    a[k + 2] = n.z;
+                }
+                a
+            })
+            .collect();
+        // Corner lists, ascending (built by prepending in reverse).
+        let mut vfirst = vec![NIL; nv];
+        let mut cnext = vec![NIL; tris.len() * 3];
+        for c in (0..tris.len() * 3).rev() {
+            let v = wvert[tris[c / 3][c % 3] as usize] as usize;
+            cnext[c] = vfirst[v];
+            vfirst[v] = c as u32;
+        }
+        let nw = wvert.len();
+        let tv: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|w| wvert[w as usize])).collect();
+        let mut work = Work {
+            input,
+            center,
+            inv_scale,
+            pos,
+            moved: vec![false; nv],
+            class: vec![VClass::Interior; nv],
+            border: vec![false; nv],
+            vfirst,
+            cnext,
+            live: tris.len(),
+            tris,
+            tv,
+            wvert,
+            wattr,
+            wq: Vec::new(),
+            vred: Vec::new(),
+            onormal: (0..input.triangles.len())
+                .into_par_iter()
+                .map(|t| {
+                    input
+                        .triangle_cross(t)
+                        .normalize_or_zero()
+                        .as_vec3()
+                        .to_array()
+                })
+                .collect(),
+            wchanged: vec![false; nw],
+            w,
+            has_uv,
+            has_normals,
+            cfg,
+            classes: ClassCounts::default(),
+        };
+        work.quadrics();
+        work.classify();
+        work
+    }
+
+    /// Each wedge's quadric is the sum of the face quadrics of its triangles (§5.6
+    /// "Initial quadrics"); each vertex keeps the position part of its wedges' sum, reduced.
+    /// In parallel over vertices (a wedge belongs to one vertex), each sum in ascending
+    /// corner order, so the result is the same whatever the thread count.
+    fn quadrics(&mut self) {
+        // Wedge → triangles (CSR), so that each wedge gathers its own sum in parallel.
+        let nw = self.wvert.len();
+        let mut offsets = vec![0u32; nw + 1];
+        for tri in &self.tris {
+            for &w in tri {
+                offsets[w as usize + 1] += 1;
+            }
+        }
+        for i in 0..nw {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut list = vec![0u32; self.tris.len() * 3];
+        {
+            let mut fill = offsets.clone();
+            for (t, tri) in self.tris.iter().enumerate() {
+                for &w in tri {
+                    list[fill[w as usize] as usize] = t as u32;
+                    fill[w as usize] += 1;
+                }
+            }
+        }
+        let this = &*self;
+        let wq: Vec<AttrPart<M>> = (0..nw)
+            .into_par_iter()
+            .map(|w| {
+                let mut a = AttrPart::<M>::default();
+                for &t in &list[offsets[w] as usize..offsets[w + 1] as usize] {
+                    if let Some(q) = this.face_quadric(t as usize) {
+                        a.add(&q.split().1);
+                    }
+                }
+                a
+            })
+            .collect();
+        drop(list);
+        drop(offsets);
+        let vred: Vec<Reduced> = (0..this.pos.len())
+            .into_par_iter()
+            .map(|v| {
+                let mut red = Reduced::default();
+                let mut seen: [u32; 8] = [NIL; 8];
+                let mut c = this.vfirst[v];
+                while c != NIL {
+                    let (t, k) = (c as usize / 3, c as usize % 3);
+                    if let Some(q) = this.face_quadric(t) {
+                        red.add(&q.split().0);
+                    }
+                    let w = this.tris[t][k];
+                    // Each wedge's Schur term once (a vertex rarely has more than 8 wedges;
+                    // beyond that a linear scan of the earlier corners decides).
+                    let first = match seen.iter().position(|&x| x == w || x == NIL) {
+                        Some(i) if seen[i] == w => false,
+                        Some(i) => {
+                            seen[i] = w;
+                            true
+                        }
+                        None => {
+                            let mut e = this.vfirst[v];
+                            let mut earlier = false;
+                            while e != c {
+                                earlier |= this.tris[e as usize / 3][e as usize % 3] == w;
+                                e = this.cnext[e as usize];
+                            }
+                            !earlier
+                        }
+                    };
+                    if first {
+                        red.schur(&wq[w as usize], &this.w, -1.0);
+                    }
+                    c = this.cnext[c as usize];
+                }
+                red
+            })
+            .collect();
+        self.wq = wq;
+        self.vred = vred;
+    }
+
+    fn face_quadric(&self, t: usize) -> Option<Quadric<M>> {
+        let tri = self.tris[t];
+        let p = tri.map(|w| self.pos[self.wvert[w as usize] as usize]);
+        let s = tri.map(|w| self.wattr[w as usize]);
+        Quadric::from_triangle(p, s, &self.w)
+    }
+
+    #[inline]
+    pub fn vertex_of(&self, c: u32) -> u32 {
+        self.wvert[self.tris[c as usize / 3][c as usize % 3] as usize]
+    }
+
+    /// Vertex classes (see [`VClass`]) from each vertex's star, in parallel; adds the
+    /// border planes of `boundary = "weighted"` to the border wedges.
+    fn classify(&mut self) {
+        struct Info {
+            class: VClass,
+            border: bool,
+            planes: Vec<([f64; 3], [f64; 3], f64)>,
+        }
+        let infos: Vec<Info> = (0..self.pos.len())
+            .into_par_iter()
+            .map_init(
+                || {
+                    (
+                        Vec::<(u32, u32)>::new(),
+                        Vec::<u32>::new(),
+                        LinkScratch::default(),
+                    )
+                },
+                |(link, corners, lsc), v| {
+                    corners.clear();
+                    let mut c = self.vfirst[v];
+                    while c != NIL {
+                        corners.push(c);
+                        c = self.cnext[c as usize];
+                    }
+                    if corners.is_empty() {
+                        return Info {
+                            class: VClass::Fixed,
+                            border: false,
+                            planes: Vec::new(),
+                        };
+                    }
+                    link.clear();
+                    let mut wedges: [u32; 4] = [NIL; 4];
+                    let mut nwedges = 0;
+                    for &c in corners.iter() {
+                        let (t, k) = (c as usize / 3, c as usize % 3);
+                        let tri = self.tris[t];
+                        link.push((
+                            self.wvert[tri[(k + 1) % 3] as usize],
+                            self.wvert[tri[(k + 2) % 3] as usize],
+                        ));
+                        let w = tri[k];
+                        if !wedges[..nwedges.min(4)].contains(&w) {
+                            if nwedges < 4 {
+                                wedges[nwedges] = w;
+                            }
+                            nwedges += 1;
+                        }
+                    }
+                    let shape = link_shape(link, lsc);
+                    let mut seam_edges = 0;
+                    let mut border_edges = 0;
+                    let mut planes = Vec::new();
+                    // Every neighbour x: the triangles on edge (v, x).
+                    for (i, &ci) in corners.iter().enumerate() {
+                        let (ti, ki) = (ci as usize / 3, ci as usize % 3);
+                        let tri_i = self.tris[ti];
+                        for side in [1, 2] {
+                            let x_w = tri_i[(ki + side) % 3];
+                            let x = self.wvert[x_w as usize];
+                            // Count each edge once: from the first corner that has it.
+                            let earlier = corners[..i].iter().any(|&cj| {
+                                let tj = self.tris[cj as usize / 3];
+                                tj.iter().any(|&w| self.wvert[w as usize] == x)
+                            });
+                            if earlier {
+                                continue;
+                            }
+                            let mut others = corners[i + 1..].iter().filter(|&&cj| {
+                                let tj = self.tris[cj as usize / 3];
+                                tj.iter().any(|&w| self.wvert[w as usize] == x)
+                            });
+                            match (others.next(), others.next()) {
+                                (None, _) => {
+                                    border_edges += 1;
+                                    if self.cfg.boundary == BoundaryMode::Weighted {
+                                        let pv = self.pos[v];
+                                        let px = self.pos[x as usize];
+                                        let e = sub(px, pv);
+                                        let n = self.unit_normal(ti);
+                                        let pn = cross(e, n);
+                                        let l = dot(pn, pn).sqrt();
+                                        if l > 0.0 {
+                                            let pn = pn.map(|c| c / l);
+                                            let weight = self.cfg.boundary_weight * dot(e, e);
+                                            planes.push((pn, pv, weight));
+                                        }
+                                    }
+                                }
+                                (Some(&cj), None) => {
+                                    let (tj, kj) = (cj as usize / 3, cj as usize % 3);
+                                    let tri_j = self.tris[tj];
+                                    let xw_j = *tri_j
+                                        .iter()
+                                        .find(|&&w| self.wvert[w as usize] == x)
+                                        .unwrap_or(&NIL);
+                                    if tri_j[kj] != tri_i[ki]
+                                        || xw_j != x_w
+                                        || self.input.triangle_material(ti)
+                                            != self.input.triangle_material(tj)
+                                    {
+                                        seam_edges += 1;
+                                    }
+                                }
+                                _ => {} // non-manifold edge: the link test fails below
+                            }
+                        }
+                    }
+                    let class = match shape {
+                        None => VClass::Fixed,
+                        Some(_) if seam_edges > 0 && border_edges > 0 => VClass::Fixed,
+                        Some(LinkShape::Path) if seam_edges == 0 && nwedges == 1 => VClass::Border,
+                        Some(LinkShape::Cycle) if seam_edges == 0 && nwedges == 1 => {
+                            VClass::Interior
+                        }
+                        Some(LinkShape::Cycle) if seam_edges == 2 && nwedges == 2 => VClass::Seam,
+                        _ => VClass::Fixed,
+                    };
+                    Info {
+                        class,
+                        border: border_edges > 0 || shape == Some(LinkShape::Path),
+                        planes,
+                    }
+                },
+            )
+            .collect();
+        for (v, info) in infos.into_iter().enumerate() {
+            let class = match (info.class, self.cfg.boundary) {
+                (VClass::Border, BoundaryMode::Keep) => VClass::Fixed,
+                (c, _) => c,
+            };
+            self.class[v] = class;
+            self.border[v] = info.border;
+            match class {
+                VClass::Interior => self.classes.interior += 1,
+                VClass::Border => self.classes.border += 1,
+                VClass::Seam => self.classes.seam += 1,
+                VClass::Fixed => self.classes.fixed += 1,
+            }
+            for (n, point, weight) in info.planes {
+                self.vred[v].add_plane(&Quadric::<M>::plane(n, point, weight));
+            }
+        }
+    }
+
+    fn unit_normal(&self, t: usize) -> [f64; 3] {
+        let tri = self.tris[t];
+        let p = tri.map(|w| self.pos[self.wvert[w as usize] as usize]);
+        let n = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        let l = dot(n, n).sqrt();
+        if l > 0.0 { n.map(|c| c / l) } else { n }
+    }
+
+    /// The class a vertex has for placement: in `free` mode border vertices move like
+    /// interior ones.
+    #[inline]
+    fn placement_class(&self, v: u32) -> VClass {
+        match (self.class[v as usize], self.cfg.boundary) {
+            (VClass::Border, BoundaryMode::Free) => VClass::Interior,
+            (c, _) => c,
+        }
+    }
+
+    /// The placement rules from the vertex classes (seam and border rules). A seam
+    /// (border) vertex only moves along its seam (border): onto a neighbour across a seam
+    /// (border) edge, so that output seams run through input seam vertices only (as
+    /// meshoptimizer's seam collapses, peers.md §2.1); a fixed vertex may absorb such a
+    /// neighbour the same way, and interior vertices merge into whichever of these they
+    /// meet. Returns up to two candidate anchors (indices into S; none = free placement).
+    /// `along(i, j)` says whether S[i]–S[j] is a seam (border) edge; `None` skips that
+    /// test (the cheap heap key).
+    fn rules(
+        &self,
+        s: &[u32],
+        along: Option<&dyn Fn(usize, usize, bool) -> bool>,
+    ) -> Result<[usize; 2], Refusal> {
+        let ns = s.len();
+        if s.iter()
+            .all(|&v| self.placement_class(v) == VClass::Interior)
+        {
+            return Ok([usize::MAX; 2]);
+        }
+        let classes = [0, 1, 2].map(|i| {
+            if i < ns {
+                self.placement_class(s[i])
+            } else {
+                VClass::Interior
+            }
+        });
+        let count = |c: VClass| classes[..ns].iter().filter(|&&x| x == c).count();
+        let (fixed, seam, border) = (
+            count(VClass::Fixed),
+            count(VClass::Seam),
+            count(VClass::Border),
+        );
+        let feature = |c: VClass| c == VClass::Seam || c == VClass::Border;
+        let first = |f: &dyn Fn(VClass) -> bool| classes[..ns].iter().position(|&c| f(c));
+        let on = |i: usize, j: usize| along.is_none_or(|f| f(i, j, seam > 0));
+        let cause = if seam > 0 {
+            Refusal::Seam
+        } else {
+            Refusal::Boundary
+        };
+        let mut anchors: [usize; 2] = [usize::MAX; 2];
+        if fixed >= 2 {
+            return Err(Refusal::Locked);
+        } else if seam > 0 && border > 0 {
+            return Err(Refusal::Seam);
+        } else if fixed == 1 {
+            let f = first(&|c| c == VClass::Fixed).unwrap_or(0);
+            match seam + border {
+                0 => anchors[0] = f,
+                1 => {
+                    let i = first(&feature).unwrap_or(0);
+                    if !on(f, i) {
+                        return Err(cause);
+                    }
+                    anchors[0] = f;
+                }
+                _ => return Err(Refusal::Locked),
+            }
+        } else {
+            match seam + border {
+                0 => {}
+                1 => anchors[0] = first(&feature).unwrap_or(0),
+                2 => {
+                    let i = first(&feature).unwrap_or(0);
+                    let j = (i + 1..ns).find(|&j| feature(classes[j])).unwrap_or(i);
+                    if !on(i, j) {
+                        return Err(cause);
+                    }
+                    anchors = [i, j];
+                }
+                _ => return Err(cause),
+            }
+        }
+        Ok(anchors)
+    }
+
+    /// Places the merged vertex for a reduced system: free (minimiser, with the
+    /// ill-conditioned fallback) or at the cheaper of the anchors.
+    fn place(
+        &self,
+        s: &[u32],
+        anchors: [usize; 2],
+        red: &Reduced,
+        dense: Option<&mut Vec<Quadric<M>>>,
+    ) -> ([f64; 3], Placement, bool) {
+        if anchors[0] != usize::MAX {
+            let i = anchors[0];
+            let pi = self.pos[s[i] as usize];
+            if anchors[1] != usize::MAX {
+                let j = anchors[1];
+                let pj = self.pos[s[j] as usize];
+                if red.eval(pj) < red.eval(pi) {
+                    return (pj, Placement::Anchor(j), false);
+                }
+            }
+            return (pi, Placement::Anchor(i), false);
+        }
+        let mut mean = [0.0; 3];
+        for &v in s {
+            let pv = self.pos[v as usize];
+            for k in 0..3 {
+                mean[k] += pv[k] / s.len() as f64;
+            }
+        }
+        let regularise = self.cfg.fallback == Fallback::Regularised;
+        match (self.cfg.conditioning, dense) {
+            (Conditioning::ThesisLiteral, Some(dense)) => {
+                let cond = dense_condition_number(dense, &self.w);
+                if cond > self.cfg.max_condition {
+                    (mean, Placement::Free, true)
+                } else {
+                    let (p, fb) = red.minimise(mean, f64::INFINITY, regularise);
+                    (p, Placement::Free, fb)
+                }
+            }
+            _ => {
+                let (p, fb) = red.minimise(mean, self.cfg.max_condition, regularise);
+                (p, Placement::Free, fb)
+            }
+        }
+    }
+
+    /// The heap key of merging S without gathering its star: the vertices' reduced systems
+    /// summed (wedge merging ignored, which only changes the attribute terms) and placed by
+    /// the class rules. [`Work::evaluate`] computes the exact plan when the key comes up.
+    pub fn quick_cost(&self, s: &[u32]) -> Result<f64, Refusal> {
+        let anchors = self.rules(s, None)?;
+        let mut red = Reduced::default();
+        for &v in s {
+            red.add(&self.vred[v as usize]);
+        }
+        let (p, _, _) = self.place(s, anchors, &red, None);
+        Ok(red.eval(p))
+    }
+
+    /// Gathers the star of S, groups the wedges and places the merged vertex.
+    pub fn evaluate(&self, s: &[u32], sc: &mut Scratch<M>) -> Result<Plan, Refusal> {
+        let ns = s.len();
+        sc.ns = ns;
+        sc.s = [NIL; 3];
+        sc.s[..ns].copy_from_slice(s);
+        sc.corners.clear();
+        sc.dead.clear();
+        sc.lw.clear();
+        sc.lw_si.clear();
+        sc.groups.clear();
+        for (si, &v) in s.iter().enumerate() {
+            let mut c = self.vfirst[v as usize];
+            while c != NIL {
+                let (t, k) = (c as usize / 3, c as usize % 3);
+                let vs = self.tv[t];
+                if vs[0] != NIL {
+                    let mut count = 0;
+                    let mut first = 3;
+                    for (kk, &x) in vs.iter().enumerate() {
+                        if x == s[0] || (ns > 1 && x == s[1]) || (ns > 2 && x == s[2]) {
+                            count += 1;
+                            first = first.min(kk);
+                        }
+                    }
+                    if count >= 2 {
+                        if first == k {
+                            sc.dead.push(t as u32);
+                        }
+                    } else {
+                        sc.corners.push(c);
+                    }
+                    let w = self.tris[t][k];
+                    if !sc.lw.contains(&w) {
+                        sc.lw.push(w);
+                        sc.lw_si.push(si as u8);
+                    }
+                }
+                c = self.cnext[c as usize];
+            }
+        }
+        if sc.dead.is_empty() {
+            return Err(Refusal::Link);
+        }
+        // Wedge merging (§5.6 step 3): the wedges at S of each deleted triangle unite.
+        sc.lw_parent.clear();
+        sc.lw_parent.extend(0..sc.lw.len() as u32);
+        for d in 0..sc.dead.len() {
+            let t = sc.dead[d] as usize;
+            let (tri, vs) = (self.tris[t], self.tv[t]);
+            let mut root = usize::MAX;
+            for k in 0..3 {
+                if !s.contains(&vs[k]) {
+                    continue;
+                }
+                let l = sc.local(tri[k]);
+                let r = sc.find(l);
+                if root == usize::MAX {
+                    root = r;
+                } else if r != root {
+                    let (a, b) = (root.min(r), root.max(r));
+                    sc.lw_parent[b] = a as u32;
+                    root = a;
+                }
+            }
+        }
+        sc.lw_group.clear();
+        sc.lw_group.resize(sc.lw.len(), NIL);
+        let mut red = Reduced::default();
+        for &v in s {
+            red.add(&self.vred[v as usize]);
+        }
+        for l in 0..sc.lw.len() {
+            let r = sc.find(l);
+            if sc.lw_group[r] == NIL {
+                sc.lw_group[r] = sc.groups.len() as u32;
+                sc.groups.push(Group {
+                    rep: sc.lw[r],
+                    size: 0,
+                    q: AttrPart::default(),
+                    at: [NIL; 3],
+                    attr: [0.0; M],
+                });
+            }
+            let g = sc.lw_group[r];
+            sc.lw_group[l] = g;
+            let w = sc.lw[l];
+            let si = sc.lw_si[l] as usize;
+            let group = &mut sc.groups[g as usize];
+            if group.at[si] != NIL {
+                // Two wedges of one vertex would merge: a seam would close.
+                return Err(Refusal::Seam);
+            }
+            group.at[si] = w;
+            group.rep = group.rep.min(w);
+            group.size += 1;
+            group.q.add(&self.wq[w as usize]);
+        }
+        // Merged wedges: their separate Schur terms give way to the merged block's.
+        if sc.groups.len() < sc.lw.len() {
+            for l in 0..sc.lw.len() {
+                if sc.groups[sc.lw_group[l] as usize].size > 1 {
+                    red.schur(&self.wq[sc.lw[l] as usize], &self.w, 1.0);
+                }
+            }
+            for g in &sc.groups {
+                if g.size > 1 {
+                    red.schur(&g.q, &self.w, -1.0);
+                }
+            }
+        }
+
+        let along = |i: usize, j: usize, seam: bool| {
+            if seam {
+                self.is_seam_edge(s[i], s[j], &sc.dead)
+            } else {
+                self.is_border_edge(s[i], s[j], &sc.dead)
+            }
+        };
+        let anchors = self.rules(s, Some(&along))?;
+        let dense = if self.cfg.conditioning == Conditioning::ThesisLiteral {
+            sc.dense.clear();
+            for g in &sc.groups {
+                let mut q = Quadric::<M>::default();
+                (q.g, q.delta, q.alpha) = (g.q.g, g.q.delta, g.q.alpha);
+                q.p = red.m;
+                q.beta = red.r;
+                sc.dense.push(q);
+            }
+            // The position block appears once: keep it in the first wedge only.
+            for q in sc.dense.iter_mut().skip(1) {
+                q.p = [0.0; 6];
+                q.beta = [0.0; 3];
+            }
+            Some(&mut sc.dense)
+        } else {
+            None
+        };
+        let (p, placement, fallback) = self.place(s, anchors, &red, dense);
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(Refusal::Degenerate);
+        }
+
+        // Attributes of each merged wedge.
+        let mut cost = red.eval(p);
+        let mut area = 0.0;
+        for g in sc.groups.iter_mut() {
+            let anchored = match placement {
+                Placement::Anchor(i) if g.at[i] != NIL => Some(g.at[i]),
+                _ => None,
+            };
+            g.attr = match anchored {
+                // The anchor's wedge keeps its identity and its attributes.
+                Some(w) => {
+                    g.rep = w;
+                    self.wattr[w as usize]
+                }
+                None => g.q.attributes_at(p).unwrap_or(self.wattr[g.rep as usize]),
+            };
+            if anchored.is_some() {
+                cost += g.q.excess(p, &g.attr, &self.w);
+            }
+            area += g.q.alpha;
+        }
+        let cost = cost.max(0.0);
+        let error = if area > 0.0 {
+            (cost / area).sqrt()
+        } else {
+            0.0
+        };
+        Ok(Plan {
+            p,
+            placement,
+            cost,
+            error,
+            fallback,
+            red,
+        })
+    }
+
+    /// Is the edge between `a` and `b` (both in S) a seam edge? Its triangles are among the
+    /// deleted ones.
+    fn is_seam_edge(&self, a: u32, b: u32, dead: &[u32]) -> bool {
+        let mut found: [usize; 2] = [usize::MAX; 2];
+        let mut n = 0;
+        for &t in dead {
+            let vs = self.tv[t as usize];
+            if vs.contains(&a) && vs.contains(&b) {
+                if n < 2 {
+                    found[n] = t as usize;
+                }
+                n += 1;
+            }
+        }
+        if n != 2 {
+            return false;
+        }
+        let wedge_at = |t: usize, v: u32| {
+            let k = self.tv[t].iter().position(|&x| x == v).unwrap_or(0);
+            self.tris[t][k]
+        };
+        let (t0, t1) = (found[0], found[1]);
+        wedge_at(t0, a) != wedge_at(t1, a)
+            || wedge_at(t0, b) != wedge_at(t1, b)
+            || self.input.triangle_material(t0) != self.input.triangle_material(t1)
+    }
+
+    fn is_border_edge(&self, a: u32, b: u32, dead: &[u32]) -> bool {
+        dead.iter()
+            .filter(|&&t| {
+                let vs = self.tv[t as usize];
+                vs.contains(&a) && vs.contains(&b)
+            })
+            .count()
+            == 1
+    }
+
+    /// The guards on the triangles that survive the merge (after [`Work::evaluate`] filled
+    /// the scratch): degeneracy, normal flip (against the triangle before the merge and
+    /// against its input triangle), texture flip, and the link condition.
+    pub fn check(&self, plan: &Plan, sc: &mut Scratch<M>) -> Result<(), Refusal> {
+        if !self.cfg.guards {
+            return Ok(());
+        }
+        let p = plan.p;
+        sc.link.clear();
+        for i in 0..sc.corners.len() {
+            let c = sc.corners[i] as usize;
+            let (t, k) = (c / 3, c % 3);
+            let tri = self.tris[t];
+            let vs = self.tv[t];
+            let (wx, wy) = (tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            let (vx, vy) = (vs[(k + 1) % 3], vs[(k + 2) % 3]);
+            sc.link.push((vx, vy));
+            let x = self.pos[vx as usize];
+            let y = self.pos[vy as usize];
+            let old = self.pos[vs[k] as usize];
+            let q_new = quality(p, x, y);
+            if q_new < DEGENERATE_QUALITY || (q_new < SLIVER_QUALITY && q_new < quality(old, x, y))
+            {
+                return Err(Refusal::Degenerate);
+            }
+            let n0 = cross(sub(x, old), sub(y, old));
+            let n1 = cross(sub(x, p), sub(y, p));
+            let (l0, l1) = (dot(n0, n0).sqrt(), dot(n1, n1).sqrt());
+            if dot(n0, n1) < self.cfg.cos_max_normal_change * l0 * l1 {
+                return Err(Refusal::Flip);
+            }
+            let origin = self.onormal[t].map(f64::from);
+            if dot(origin, n1) <= 0.0 {
+                return Err(Refusal::Flip);
+            }
+            if self.has_uv {
+                let a_old = self.wattr[tri[k] as usize];
+                let g = sc.group_of(tri[k]);
+                let a_new = g.attr;
+                let ux = self.wattr[wx as usize];
+                let uy = self.wattr[wy as usize];
+                let before = uv_area([a_old[0], a_old[1]], [ux[0], ux[1]], [uy[0], uy[1]]);
+                let after = uv_area([a_new[0], a_new[1]], [ux[0], ux[1]], [uy[0], uy[1]]);
+                if before != 0.0 && (after * before <= 0.0 || after.abs() < 1e-14) {
+                    return Err(Refusal::TextureFlip);
+                }
+            }
+        }
+        let expect = if sc.s[..sc.ns].iter().any(|&v| self.border[v as usize]) {
+            LinkShape::Path
+        } else {
+            LinkShape::Cycle
+        };
+        match link_shape(&sc.link, &mut sc.link_sc) {
+            Some(shape) if shape == expect => Ok(()),
+            _ => Err(Refusal::Link),
+        }
+    }
+
+    /// Performs the merge evaluated into `sc`. Returns the surviving vertex.
+    pub fn apply(&mut self, plan: &Plan, sc: &Scratch<M>) -> u32 {
+        let ns = sc.ns;
+        let s = &sc.s[..ns];
+        let n = match plan.placement {
+            Placement::Anchor(i) => s[i],
+            _ => s[0],
+        };
+        if !matches!(plan.placement, Placement::Anchor(_)) {
+            self.pos[n as usize] = plan.p;
+            self.moved[n as usize] = true;
+        }
+        let class = s
+            .iter()
+            .map(|&v| self.class[v as usize])
+            .max()
+            .unwrap_or(VClass::Fixed);
+        let border = s.iter().any(|&v| self.border[v as usize]);
+        for &v in s {
+            if v != n {
+                self.vfirst[v as usize] = NIL;
+            }
+        }
+        self.class[n as usize] = class;
+        self.border[n as usize] = border;
+        self.vred[n as usize] = plan.red;
+        for g in &sc.groups {
+            let r = g.rep as usize;
+            self.wq[r] = g.q;
+            self.wvert[r] = n;
+            if self.wattr[r] != g.attr {
+                self.wattr[r] = g.attr;
+                self.wchanged[r] = true;
+            }
+        }
+        for &t in &sc.dead {
+            self.tv[t as usize] = [NIL; 3];
+        }
+        self.live -= sc.dead.len();
+        for &c in &sc.corners {
+            let (t, k) = (c as usize / 3, c as usize % 3);
+            let w = self.tris[t][k];
+            self.tris[t][k] = sc.group_of(w).rep;
+            self.tv[t][k] = n;
+        }
+        // Relink n's corner list: exactly the surviving corners.
+        let mut next = NIL;
+        for &c in sc.corners.iter().rev() {
+            self.cnext[c as usize] = next;
+            next = c;
+        }
+        self.vfirst[n as usize] = next;
+        n
+    }
+
+    /// The thesis' cost estimate for a face (§5.6 "Cost estimate", [I] formula): weighted
+    /// mean squared deviation of the corner values from their mean.
+    pub fn estimate(&self, t: usize) -> f64 {
+        let tri = self.tris[t];
+        let p = self.tv[t].map(|v| self.pos[v as usize]);
+        let a = tri.map(|w| self.wattr[w as usize]);
+        let mut e = 0.0;
+        for k in 0..3 {
+            let mean = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
+            e += self.w.geom * p.iter().map(|q| (q[k] - mean).powi(2)).sum::<f64>();
+        }
+        for j in 0..M {
+            let mean = (a[0][j] + a[1][j] + a[2][j]) / 3.0;
+            e += self.w.attr[j] * a.iter().map(|q| (q[j] - mean).powi(2)).sum::<f64>();
+        }
+        e / 3.0
+    }
+
+    /// The output mesh: surviving triangles in their input order with their origins and
+    /// materials; moved vertices mapped back from the unit box, unmoved ones bit-exact;
+    /// changed attributes appended as new texture coordinates / normals (§10.15), normals
+    /// renormalised (§10.12).
+    pub fn into_mesh(self) -> Mesh {
+        let input = self.input;
+        let scale = 1.0 / self.inv_scale;
+        let positions: Vec<DVec3> = (0..self.pos.len())
+            .map(|v| {
+                if self.moved[v] {
+                    DVec3::from_array(self.pos[v]) * scale + self.center
+                } else {
+                    input.positions[v]
+                }
+            })
+            .collect();
+        let mut texcoords = input.texcoords.clone();
+        let mut normals = input.normals.clone();
+        let wedges: Vec<Wedge> = input
+            .wedges
+            .iter()
+            .enumerate()
+            .map(|(w, orig)| {
+                let mut wedge = Wedge {
+                    vertex: self.wvert[w],
+                    ..*orig
+                };
+                if self.wchanged[w] {
+                    let a = self.wattr[w];
+                    let mut k = 0;
+                    if self.has_uv {
+                        if orig.texcoord.is_some() {
+                            texcoords.push(DVec2::new(a[0], a[1]));
+                            wedge.texcoord = Some((texcoords.len() - 1) as Index);
+                        }
+                        k = 2;
+                    }
+                    if self.has_normals && orig.normal.is_some() {
+                        let n = DVec3::new(a[k], a[k + 1], a[k + 2]);
+                        let n = n
+                            .try_normalize()
+                            .unwrap_or(input.normals[orig.normal.unwrap_or(0) as usize]);
+                        normals.push(n);
+                        wedge.normal = Some((normals.len() - 1) as Index);
+                    }
+                }
+                wedge
+            })
+            .collect();
+        let keep: Vec<usize> = (0..self.tris.len())
+            .filter(|&t| self.tv[t][0] != NIL)
+            .collect();
+        let mut mesh = Mesh {
+            positions,
+            texcoords,
+            normals,
+            colors: input.colors.clone(),
+            wedges,
+            triangles: keep.iter().map(|&t| self.tris[t]).collect(),
+            triangle_materials: if input.triangle_materials.is_empty() {
+                Vec::new()
+            } else {
+                keep.iter().map(|&t| input.triangle_materials[t]).collect()
+            },
+            materials: input.materials.clone(),
+            triangle_origins: keep.iter().map(|&t| input.triangle_origin(t)).collect(),
+        };
+        mesh.compact();
+        mesh
+    }
+}

@@ -1,0 +1,248 @@
+//! The texture fix after decimation (spec/decimation.md §5.7, thesis §3.3): output
+//! triangles whose texture coordinates moved far more than their positions get them
+//! recomputed by projecting their corners onto the input triangle they descend from
+//! (`Mesh::triangle_origins`) and interpolating that triangle's texture coordinates
+//! (eqs. 3.7–3.8). Within one input triangle all texture coordinates come from one chart,
+//! so a repaired triangle never straddles a seam.
+//!
+//! A repaired triangle gets its own texture coordinates and wedges (§5.7 [I]): the wedges
+//! it shared with unrepaired neighbours are left alone.
+//!
+//! Detection (§5.7): the thesis flags corner i when `10⁻²·‖p̂′ᵢ − p̂ᵢ‖ < ‖t′ᵢ − tᵢ‖`, with
+//! positions normalised into [−1, 1]³. Read literally that flags nearly every corner that
+//! moved at all (a texture coordinate moves in proportion to its position, with the chart's
+//! scale, usually far above 10⁻²), which is the opposite of the stated intent ("a corner whose
+//! texture coordinate moved much more than its position"). `detection = "thesis"` keeps the
+//! printed rule; the default `"jump"` flags a corner whose texture coordinate is farther from
+//! the projection's than `factor` times the move the input triangle's own texture scale
+//! predicts for its position change (plus `tolerance`), i.e. texture that moved
+//! inconsistently with geometry — which is what a jump across charts looks like.
+
+use crate::mesh::{Index, Mesh, Wedge};
+use glam::{DVec2, DVec3};
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Detection {
+    /// Texture moved inconsistently with the position (default; see the module comment).
+    #[default]
+    Jump,
+    /// The thesis' printed rule, `factor·‖Δp̂‖ < ‖Δt‖` (factor 10⁻² there).
+    Thesis,
+    /// Repair every triangle.
+    All,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SeamFixParams {
+    pub detection: Detection,
+    /// The detection factor: 10⁻² for `thesis`; for `jump`, how many times the expected
+    /// texture move the inconsistency may reach (default 1).
+    pub factor: Option<f64>,
+    /// Texture-space slack of the `jump` rule (about 4 texels of a 4096² image).
+    pub tolerance: f64,
+}
+
+impl Default for SeamFixParams {
+    fn default() -> Self {
+        SeamFixParams {
+            detection: Detection::Jump,
+            factor: None,
+            tolerance: 1e-3,
+        }
+    }
+}
+
+impl SeamFixParams {
+    pub fn validate(&self) -> Result<(), String> {
+        if let Some(f) = self.factor
+            && !(f.is_finite() && f >= 0.0)
+        {
+            return Err(format!("factor must be a finite number ≥ 0, got {f}"));
+        }
+        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+            return Err(format!("tolerance must be ≥ 0, got {}", self.tolerance));
+        }
+        Ok(())
+    }
+
+    fn factor(&self) -> f64 {
+        self.factor.unwrap_or(match self.detection {
+            Detection::Thesis => 1e-2,
+            _ => 1.0,
+        })
+    }
+}
+
+/// What the step did.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SeamFixReport {
+    pub triangles: usize,
+    /// Triangles with a corner flagged by the detection rule.
+    pub flagged: usize,
+    /// Flagged triangles whose texture coordinates were recomputed.
+    pub repaired: usize,
+    /// Flagged triangles left alone: no texture coordinates, or a degenerate or unknown
+    /// input triangle.
+    pub skipped: usize,
+}
+
+/// The projection of (3.7)–(3.8): the barycentric coordinates of `p` projected onto the
+/// plane of `tri` (σ_u, σ_v by the dual basis of the edge vectors, the same solution as the
+/// 3×3 system with columns u, v, n). `None` if the triangle is degenerate.
+fn project(tri: [DVec3; 3], p: DVec3) -> Option<(f64, f64)> {
+    let (u, v) = (tri[1] - tri[0], tri[2] - tri[0]);
+    let n = u.cross(v);
+    let nn = n.length_squared();
+    if nn.is_nan() || nn <= 0.0 {
+        return None;
+    }
+    let b1 = v.cross(n) / nn;
+    let b2 = n.cross(u) / nn;
+    let d = p - tri[0];
+    Some((d.dot(b1), d.dot(b2)))
+}
+
+/// Repairs `mesh` (a result whose `triangle_origins` index `input`).
+pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFixReport {
+    let mut report = SeamFixReport {
+        triangles: mesh.triangles.len(),
+        ..Default::default()
+    };
+    if !mesh.has_texcoords() || !input.has_texcoords() {
+        return report;
+    }
+    // Positions normalised into [−1, 1]³ (footnote 3 of §3.3).
+    let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
+    let half = ((hi - lo).max_element() * 0.5).max(f64::MIN_POSITIVE);
+    let factor = params.factor();
+    for t in 0..mesh.triangles.len() {
+        let o = mesh.triangle_origin(t) as usize;
+        let corners = mesh.triangles[t];
+        let now_p = mesh.triangle_positions(t);
+        let now_t = corners.map(|w| mesh.wedge_texcoord(w));
+        let (Some(orig_p), Some(orig_t)) = (
+            (o < input.triangles.len()).then(|| input.triangle_positions(o)),
+            (o < input.triangles.len())
+                .then(|| input.triangles[o].map(|w| input.wedge_texcoord(w)))
+                .and_then(|a| Some([a[0]?, a[1]?, a[2]?])),
+        ) else {
+            continue;
+        };
+        let projected: Option<Vec<DVec2>> = now_p
+            .iter()
+            .map(|&p| {
+                project(orig_p, p).map(|(su, sv)| {
+                    orig_t[0] + su * (orig_t[1] - orig_t[0]) + sv * (orig_t[2] - orig_t[0])
+                })
+            })
+            .collect();
+        // Texture scale of the input triangle: texture length per unit of normalised length.
+        let geo_area = (orig_p[1] - orig_p[0])
+            .cross(orig_p[2] - orig_p[0])
+            .length()
+            / half
+            / half;
+        let uv_area = {
+            let (a, b) = (orig_t[1] - orig_t[0], orig_t[2] - orig_t[0]);
+            (a.x * b.y - a.y * b.x).abs()
+        };
+        let scale = if geo_area > 0.0 {
+            (uv_area / geo_area).sqrt()
+        } else {
+            0.0
+        };
+        let flagged = (0..3).any(|i| {
+            let Some(tn) = now_t[i] else { return true };
+            let moved = (now_p[i] - orig_p[i]).length() / half;
+            match params.detection {
+                Detection::All => true,
+                Detection::Thesis => factor * moved < (tn - orig_t[i]).length(),
+                Detection::Jump => projected.as_ref().is_some_and(|pr| {
+                    (tn - pr[i]).length() > factor * scale * moved + params.tolerance
+                }),
+            }
+        });
+        if !flagged {
+            continue;
+        }
+        report.flagged += 1;
+        let Some(projected) = projected else {
+            report.skipped += 1;
+            continue;
+        };
+        for k in 0..3 {
+            let old = mesh.wedges[corners[k] as usize];
+            mesh.texcoords.push(projected[k]);
+            mesh.wedges.push(Wedge {
+                vertex: old.vertex,
+                texcoord: Some((mesh.texcoords.len() - 1) as Index),
+                normal: old.normal,
+            });
+            mesh.triangles[t][k] = (mesh.wedges.len() - 1) as Index;
+        }
+        report.repaired += 1;
+    }
+    mesh.compact();
+    report
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::grid;
+
+    #[test]
+    fn projection_is_identity_at_the_corners() {
+        let tri = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        assert_eq!(project(tri, DVec3::X), Some((1.0, 0.0)));
+        assert_eq!(project(tri, DVec3::new(0.0, 1.0, 5.0)), Some((0.0, 1.0)));
+        assert_eq!(project([DVec3::ZERO; 3], DVec3::X), None);
+    }
+
+    #[test]
+    fn untouched_mesh_is_not_flagged_and_all_is_identity() {
+        let input = grid(4, 4);
+        let mut m = input.clone();
+        let r = seam_fix(&mut m, &input, &SeamFixParams::default());
+        assert_eq!(r.flagged, 0);
+        assert_eq!(m, input);
+        // Repairing everything with unmoved corners gives the same coordinates.
+        let r = seam_fix(
+            &mut m,
+            &input,
+            &SeamFixParams {
+                detection: Detection::All,
+                ..Default::default()
+            },
+        );
+        assert_eq!(r.repaired, input.triangles.len());
+        for t in 0..m.triangles.len() {
+            for k in 0..3 {
+                let a = m.wedge_texcoord(m.triangles[t][k]).unwrap();
+                let b = input.wedge_texcoord(input.triangles[t][k]).unwrap();
+                assert!((a - b).length() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn a_jumped_texture_coordinate_is_repaired() {
+        let input = grid(4, 4);
+        let mut m = input.clone();
+        // One wedge's texture coordinate jumps far away (as if taken from another chart).
+        let w = m.triangles[5][1] as usize;
+        let tc = m.wedges[w].texcoord.unwrap() as usize;
+        m.texcoords[tc] += DVec2::new(0.5, 0.0);
+        let r = seam_fix(&mut m, &input, &SeamFixParams::default());
+        assert!(
+            r.repaired >= 1 && r.repaired < input.triangles.len(),
+            "{r:?}"
+        );
+        let fixed = m.wedge_texcoord(m.triangles[5][1]).unwrap();
+        let want = input.wedge_texcoord(input.triangles[5][1]).unwrap();
+        assert!((fixed - want).length() < 1e-12);
+    }
+}
