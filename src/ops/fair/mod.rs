@@ -280,7 +280,9 @@ impl RelaxParams {
                 lambda: 0.0,
                 lambda_u: self.lambda_u,
                 t_h: 0,
-                t_u: 1,
+                // One phase for the whole run (a length of 1 would keep the fast
+                // schedule from scaling time).
+                t_u: self.max_iterations.max(1),
                 max_iterations: self.max_iterations,
                 stop: self.stop,
                 stop_in: StopIn::Any,
