@@ -4,7 +4,8 @@
 //!
 //! ```text
 //! cargo run --release --example decimate -- ../shared/data/textured/facefuns_di3d_face/example.obj \
-//!     --subdivide 2 --target 26000 [--method face-collapse] [--meshopt] [--audit] [--out out.obj]
+//!     --subdivide 2 --target 26000 [--method edge-collapse] [--meshopt] [--audit] [--quality] \
+//!     [--seam-fix] [--texture IMG] [--params 'texture_weight = 1e-17'] [--out out.obj]
 //! ```
 
 use clap::Parser;
