@@ -159,6 +159,9 @@ pub fn process_scan(
         ..LoadOptions::default()
     };
     let (mut mesh, load_report) = load(input, &options)?;
+    // The file's text and the parser's arrays are gone: give their memory back before the
+    // steps allocate theirs (see `memory`).
+    crate::memory::release_freed();
     let mut input_files = vec![FileHash::of(input).map_err(|e| MeshError::io(input, e))?];
     for material in &mesh.materials {
         if let Some(texture) = &material.diffuse_texture {

@@ -6,6 +6,7 @@
 //! the parallel closest-point queries are collected in sample order, and every sum runs
 //! sequentially in that order, so the figures do not depend on the thread count.
 
+pub mod bvh;
 pub mod distance;
 pub mod noise;
 pub mod normals;
@@ -110,17 +111,15 @@ pub fn compare_with_cache(
     cache: &mut TextureCache,
 ) -> Result<FinalMetrics, MetricsError> {
     let start = Instant::now();
-    // The sample-based metrics and the combinatorial ones are independent: run them side
-    // by side (each is parallel inside too).
-    let (sampled, (topology, vertex_deviation)) = rayon::join(
-        || sampled_metrics(result, reference, options, cache),
-        || {
-            rayon::join(
-                || topology::compare(result, reference, options.crack_distance_factor),
-                || distance::vertex_deviation(result, reference),
-            )
-        },
+    // The combinatorial metrics first, then the sample-based ones (each parallel inside):
+    // one after the other rather than side by side, because the reference's topology and
+    // its closest-point index are the two big allocations here and a 400k-triangle input
+    // must not hold both at once (issue #8's memory budget).
+    let (topology, vertex_deviation) = rayon::join(
+        || topology::compare(result, reference, options.crack_distance_factor),
+        || distance::vertex_deviation(result, reference),
     );
+    let sampled = sampled_metrics(result, reference, options, cache);
     let (distance, normals, texture) = sampled?;
     let volume = volume::change(
         volume::volume_from_counts(result, &topology.after.counts),

@@ -2,11 +2,9 @@
 //! closest-point queries on the other surface through a BVH (parry3d-f64's `TriMesh`).
 
 use super::MetricsError;
+use super::bvh::{TriangleBvh, TriangleHit};
 use crate::mesh::Mesh;
 use glam::DVec3;
-use parry3d_f64::math::Vector as PVector;
-use parry3d_f64::query::{PointQuery, PointQueryWithLocation};
-use parry3d_f64::shape::{TriMesh, Triangle};
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
 
@@ -51,16 +49,25 @@ pub fn sample_surface(mesh: &Mesh, n: usize, seed: u64) -> Vec<SurfacePoint> {
     if total <= 0.0 || n == 0 {
         return Vec::new();
     }
+    // Draw every sample first, then visit them in surface order (ascending running area,
+    // so ascending triangle index): the same set of samples as drawing them one by one, but
+    // neighbouring samples then lie on neighbouring triangles, and the closest-point queries
+    // that follow touch memory in order instead of at random (surface distance with 100k
+    // samples each way on a 400k-triangle scan: 1.15 → 0.53 CPU seconds, benches/metrics.rs).
     let mut rng = rng(seed);
-    (0..n)
-        .map(|_| {
-            let target = rng.random::<f64>() * total;
+    let mut draws: Vec<(f64, f64, f64)> = (0..n)
+        .map(|_| (rng.random::<f64>() * total, rng.random(), rng.random()))
+        .collect();
+    draws.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let mut t = 0;
+    draws
+        .into_iter()
+        .map(|(target, mut u, mut v)| {
             // First triangle whose running area passes the target; zero-area triangles
             // never are (their running area equals their predecessor's).
-            let t = cumulative
-                .partition_point(|&c| c <= target)
-                .min(cumulative.len() - 1);
-            let (mut u, mut v): (f64, f64) = (rng.random(), rng.random());
+            while t + 1 < cumulative.len() && cumulative[t] <= target {
+                t += 1;
+            }
             if u + v > 1.0 {
                 (u, v) = (1.0 - u, 1.0 - v);
             }
@@ -79,28 +86,6 @@ pub fn interpolate_position(mesh: &Mesh, t: usize, bary: DVec3) -> DVec3 {
     a * bary.x + b * bary.y + c * bary.z
 }
 
-/// Barycentric coordinates of `p` (assumed in the triangle's plane) in triangle `a b c`,
-/// clamped to the triangle. Computed here rather than taken from the BVH crate so that the
-/// corner order is ours beyond doubt.
-pub fn barycentric(p: DVec3, [a, b, c]: [DVec3; 3]) -> DVec3 {
-    let (v0, v1, v2) = (b - a, c - a, p - a);
-    let (d00, d01, d11) = (v0.dot(v0), v0.dot(v1), v1.dot(v1));
-    let (d20, d21) = (v2.dot(v0), v2.dot(v1));
-    let denom = d00 * d11 - d01 * d01;
-    if denom.abs() <= f64::MIN_POSITIVE {
-        return DVec3::new(1.0, 0.0, 0.0);
-    }
-    let v = (d11 * d20 - d01 * d21) / denom;
-    let w = (d00 * d21 - d01 * d20) / denom;
-    let bary = DVec3::new(1.0 - v - w, v, w).max(DVec3::ZERO);
-    let sum = bary.x + bary.y + bary.z;
-    if sum > 0.0 {
-        bary / sum
-    } else {
-        DVec3::new(1.0, 0.0, 0.0)
-    }
-}
-
 /// The closest point on a surface to a query point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Closest {
@@ -108,42 +93,27 @@ pub struct Closest {
     pub distance: f64,
 }
 
-/// A BVH over a mesh's triangles for exact closest-point queries. Zero-area triangles are
-/// left out: they add no surface, and the projection onto them is ill-defined.
+/// An index over a mesh's triangles for exact closest-point queries ([`super::bvh`]).
+/// Zero-area triangles are left out: they add no surface, and the projection onto them is
+/// ill-defined.
 pub struct SurfaceIndex<'a> {
     mesh: &'a Mesh,
-    trimesh: TriMesh,
-    /// Mesh triangle of each BVH triangle.
-    triangles: Vec<u32>,
-}
-
-fn to_parry(p: DVec3) -> PVector {
-    PVector::new(p.x, p.y, p.z)
+    bvh: TriangleBvh<'a>,
 }
 
 impl<'a> SurfaceIndex<'a> {
     pub fn new(mesh: &'a Mesh, which: &'static str) -> Result<Self, MetricsError> {
         check_measurable(mesh, which)?;
-        let mut triangles = Vec::with_capacity(mesh.triangles.len());
-        let mut indices = Vec::with_capacity(mesh.triangles.len());
-        for t in 0..mesh.triangles.len() {
-            if mesh.triangle_cross(t).length_squared() > 0.0 {
-                triangles.push(t as u32);
-                indices.push(mesh.triangle_vertices(t));
-            }
-        }
-        if indices.is_empty() {
+        let triangles: Vec<u32> = (0..mesh.triangles.len())
+            .filter(|&t| mesh.triangle_cross(t).length_squared() > 0.0)
+            .map(|t| t as u32)
+            .collect();
+        if triangles.is_empty() {
             return Err(MetricsError::Empty { which });
         }
-        let vertices = mesh.positions.iter().map(|&p| to_parry(p)).collect();
-        let trimesh = TriMesh::new(vertices, indices).map_err(|e| MetricsError::Index {
-            which,
-            message: e.to_string(),
-        })?;
         Ok(SurfaceIndex {
             mesh,
-            trimesh,
-            triangles,
+            bvh: TriangleBvh::new(mesh, triangles),
         })
     }
 
@@ -153,50 +123,30 @@ impl<'a> SurfaceIndex<'a> {
 
     /// The exact closest point of the surface to `p`.
     pub fn closest(&self, p: DVec3) -> Closest {
-        let (projection, (part, _)) = self
-            .trimesh
-            .project_local_point_and_get_location(to_parry(p), false);
-        self.closest_from(p, projection.point, part)
+        self.to_closest(p, self.bvh.closest(p, None))
     }
 
     /// The exact closest point of the surface to `p`, knowing that triangle `near` of the
     /// mesh is close: its distance bounds the search from the start, which prunes most of
-    /// the BVH (the answer is the same, only found faster).
+    /// the tree (the answer is the same, only found faster).
     pub fn closest_near(&self, p: DVec3, near: usize) -> Closest {
         if near >= self.mesh.triangles.len() {
             return self.closest(p);
         }
-        let [a, b, c] = self.mesh.triangle_positions(near);
-        let bound = Triangle::new(to_parry(a), to_parry(b), to_parry(c))
-            .distance_to_local_point(to_parry(p), true);
-        // A hair over the bound, so that the triangle itself (or a closer one) qualifies.
-        let max_dist = bound * (1.0 + 1e-9) + f64::MIN_POSITIVE;
-        match self
-            .trimesh
-            .project_local_point_and_get_location_with_max_dist(to_parry(p), false, max_dist)
-        {
-            Some((projection, (part, _))) => self.closest_from(p, projection.point, part),
-            None => self.closest(p),
-        }
+        let start = self.bvh.hit_on(p, near as u32);
+        self.to_closest(p, self.bvh.closest(p, Some(start)))
     }
 
-    fn closest_from(&self, p: DVec3, projected: PVector, part: u32) -> Closest {
-        let point = DVec3::new(projected.x, projected.y, projected.z);
-        // `part` is always in range for a finite query on a non-empty mesh (both checked);
-        // fall back to the first triangle rather than panic should that ever change.
-        let triangle = self
-            .triangles
-            .get(part as usize)
-            .copied()
-            .unwrap_or(self.triangles[0]);
-        let bary = barycentric(point, self.mesh.triangle_positions(triangle as usize));
+    fn to_closest(&self, p: DVec3, hit: Option<TriangleHit>) -> Closest {
+        // The index is never empty (checked in `new`); the fallback only avoids a panic.
+        let hit = hit.unwrap_or_else(|| self.bvh.hit_on(p, 0));
         Closest {
             on: SurfacePoint {
-                triangle,
-                bary,
-                point,
+                triangle: hit.triangle,
+                bary: hit.bary,
+                point: hit.point,
             },
-            distance: point.distance(p),
+            distance: hit.distance_squared.sqrt(),
         }
     }
 

@@ -94,20 +94,16 @@ pub fn run_recipe(
     total_stages: usize,
 ) -> Result<RunOutcome, StepError> {
     if !recipe.metrics.enabled {
-        let steps = run_steps_observed(
-            recipe,
-            mesh,
-            progress,
-            first_stage,
-            total_stages,
-            &mut |_, _| {},
-        )?;
+        let steps = run_steps(recipe, mesh, progress, first_stage, total_stages)?;
         return Ok(RunOutcome {
             steps,
             metrics: Value::Null,
         });
     }
-    let mut reference = mesh.clone();
+    // One copy of the input serves both the final metrics and `seam_fix` (a 400k-triangle
+    // scan's copy is ~30 MB); after a crop the metrics' reference becomes the cropped mesh.
+    let input = Arc::new(mesh.clone());
+    let mut reference = Arc::clone(&input);
     let mut cropped = false;
     let steps = run_steps_observed(
         recipe,
@@ -115,9 +111,10 @@ pub fn run_recipe(
         progress,
         first_stage,
         total_stages,
+        needs_input(recipe).then_some(input),
         &mut |step, after| {
             if matches!(step, Step::Crop(_)) {
-                reference = after.clone();
+                reference = Arc::new(after.clone());
                 cropped = true;
             }
         },
@@ -139,14 +136,21 @@ pub fn run_steps(
     first_stage: usize,
     total_stages: usize,
 ) -> Result<Vec<StepReport>, StepError> {
+    let input = needs_input(recipe).then(|| Arc::new(mesh.clone()));
     run_steps_observed(
         recipe,
         mesh,
         progress,
         first_stage,
         total_stages,
+        input,
         &mut |_, _| {},
     )
+}
+
+/// Whether a step refers back to the loaded input through `triangle_origins`.
+fn needs_input(recipe: &Recipe) -> bool {
+    recipe.steps.iter().any(|s| matches!(s, Step::SeamFix(_)))
 }
 
 /// [`run_steps`], calling `after_step` with each step and the mesh it left.
@@ -156,15 +160,10 @@ fn run_steps_observed(
     progress: &dyn Progress,
     first_stage: usize,
     total_stages: usize,
+    input: Option<Arc<Mesh>>,
     after_step: &mut dyn FnMut(&Step, &Mesh),
 ) -> Result<Vec<StepReport>, StepError> {
     let mut reports = Vec::with_capacity(recipe.steps.len());
-    // The loaded input, for steps that refer back to it through `triangle_origins`.
-    let input: Option<Arc<Mesh>> = recipe
-        .steps
-        .iter()
-        .any(|s| matches!(s, Step::SeamFix(_)))
-        .then(|| Arc::new(mesh.clone()));
     for (i, step) in recipe.steps.iter().enumerate() {
         let before = recipe.step_metrics.contains(&(i + 1)).then(|| mesh.clone());
         progress.stage(first_stage + i, total_stages, step.kind());
@@ -182,6 +181,7 @@ fn run_steps_observed(
         tracing::debug!(wall_ms, faces = mesh.triangles.len(), "step done");
         let metrics = before.map(|b| metrics_value(mesh, &b, &recipe.metrics.options()));
         after_step(step, mesh);
+        crate::memory::release_freed();
         reports.push(StepReport {
             kind: step.kind().to_string(),
             wall_ms,
