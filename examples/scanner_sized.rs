@@ -7,10 +7,9 @@
 //!
 //! cargo run --release --example scanner_sized -- IN OUT [FACES=400000] [NOISE=0] [TEXTURE]
 
-use glam::DVec3;
-use scanmill::mesh::{LoadOptions, Mesh, SaveOptions, load, save};
+use scanmill::mesh::{LoadOptions, SaveOptions, load, save};
 use scanmill::metrics::noise::{NoiseOptions, add_noise};
-use scanmill::ops::subdivide::subdivide;
+use scanmill::ops::subdivide::scanner_sized;
 use std::path::PathBuf;
 
 fn main() {
@@ -32,10 +31,7 @@ fn main() {
         ..LoadOptions::default()
     };
     let (mut mesh, _) = load(args[0].as_ref(), &options).unwrap_or_else(|e| panic!("{e}"));
-    while mesh.triangles.len() < faces {
-        mesh = subdivide(&mesh);
-    }
-    keep_nearest_centre(&mut mesh, faces);
+    mesh = scanner_sized(&mesh, faces);
     if noise > 0.0 {
         let report = add_noise(
             &mut mesh,
@@ -52,44 +48,4 @@ fn main() {
     let written =
         save(&mesh, args[1].as_ref(), &SaveOptions::default()).unwrap_or_else(|e| panic!("{e}"));
     eprintln!("{} triangles → {written:?}", mesh.triangles.len());
-}
-
-/// Keeps the `faces` triangles whose centroids are nearest the mesh's area-weighted centre,
-/// in their original order.
-fn keep_nearest_centre(mesh: &mut Mesh, faces: usize) {
-    if mesh.triangles.len() <= faces {
-        return;
-    }
-    let centroids: Vec<DVec3> = (0..mesh.triangles.len())
-        .map(|t| {
-            let [a, b, c] = mesh.triangle_positions(t);
-            (a + b + c) / 3.0
-        })
-        .collect();
-    let centre = centroids.iter().sum::<DVec3>() / centroids.len() as f64;
-    let mut order: Vec<usize> = (0..centroids.len()).collect();
-    order.sort_by(|&a, &b| {
-        centroids[a]
-            .distance_squared(centre)
-            .total_cmp(&centroids[b].distance_squared(centre))
-            .then(a.cmp(&b))
-    });
-    let mut keep = vec![false; centroids.len()];
-    for &t in &order[..faces] {
-        keep[t] = true;
-    }
-    let mut index = 0;
-    mesh.triangles.retain(|_| {
-        index += 1;
-        keep[index - 1]
-    });
-    if !mesh.triangle_materials.is_empty() {
-        let mut index = 0;
-        mesh.triangle_materials.retain(|_| {
-            index += 1;
-            keep[index - 1]
-        });
-    }
-    mesh.triangle_origins.clear();
-    mesh.compact();
 }

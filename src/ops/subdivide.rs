@@ -101,10 +101,63 @@ pub fn subdivide(mesh: &Mesh) -> Mesh {
     out
 }
 
+/// A scanner-sized test scan made from a real one: subdivided until it has at least `faces`
+/// triangles, then the `faces` triangles whose centroids lie nearest the mesh's centre are
+/// kept (one coherent patch, as a scanner's field of view gives, rather than the first
+/// `faces` in file order, which leaves hundreds of scattered pieces). Used by benchmarks and
+/// `examples/scanner_sized`.
+pub fn scanner_sized(mesh: &Mesh, faces: usize) -> Mesh {
+    let mut mesh = mesh.clone();
+    while mesh.triangles.len() < faces && !mesh.triangles.is_empty() {
+        mesh = subdivide(&mesh);
+    }
+    if mesh.triangles.len() <= faces {
+        return mesh;
+    }
+    let centroids: Vec<glam::DVec3> = (0..mesh.triangles.len())
+        .map(|t| {
+            let [a, b, c] = mesh.triangle_positions(t);
+            (a + b + c) / 3.0
+        })
+        .collect();
+    let centre = centroids.iter().sum::<glam::DVec3>() / centroids.len() as f64;
+    let mut order: Vec<usize> = (0..centroids.len()).collect();
+    order.sort_by(|&a, &b| {
+        centroids[a]
+            .distance_squared(centre)
+            .total_cmp(&centroids[b].distance_squared(centre))
+            .then(a.cmp(&b))
+    });
+    let mut keep = vec![false; centroids.len()];
+    for &t in &order[..faces] {
+        keep[t] = true;
+    }
+    let mut kept = keep.iter();
+    mesh.triangles.retain(|_| *kept.next().unwrap_or(&false));
+    if !mesh.triangle_materials.is_empty() {
+        let mut kept = keep.iter();
+        mesh.triangle_materials
+            .retain(|_| *kept.next().unwrap_or(&false));
+    }
+    mesh.triangle_origins.clear();
+    mesh.compact();
+    mesh
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::mesh::shapes::{grid, uv_sphere};
+
+    #[test]
+    fn scanner_sized_is_one_patch_of_the_size_asked() {
+        let s = scanner_sized(&grid(10, 10), 500);
+        assert_eq!(s.triangles.len(), 500);
+        assert_eq!(crate::mesh::Topology::new(&s).component_count(), 1);
+        assert!(s.check_invariants().is_ok());
+        // Already big enough: unchanged.
+        assert_eq!(scanner_sized(&grid(3, 3), 18).triangles.len(), 18);
+    }
 
     #[test]
     fn quadruples_faces_and_keeps_area() {
