@@ -57,3 +57,24 @@ fn process_on_james_writes_a_preview_that_is_not_blank() {
         );
     }
 }
+
+#[test]
+fn a_preview_that_cannot_be_drawn_does_not_fail_the_job() {
+    use scanmill::recipe::Recipe;
+    use scanmill::recipe::runner::NoProgress;
+    let mut recipe = Recipe::from_toml(
+        "[metrics]\nenabled = false\n[[step]]\nkind = \"normals\"\n",
+        std::path::Path::new("r.toml"),
+    )
+    .unwrap();
+    // Options the recipe parser would refuse: the renderer refuses them too.
+    recipe.preview.size = 8;
+    let tmp = tempfile::tempdir().unwrap();
+    let input = format!("{DATA}/textured/james_face_stereo_capture/james.obj");
+    let report =
+        scanmill::process::process_scan(input.as_ref(), &recipe, None, tmp.path(), &NoProgress)
+            .unwrap();
+    assert!(report.preview.is_none());
+    assert!(tmp.path().join("james.obj").is_file());
+    assert!(!tmp.path().join("james.preview.png").exists());
+}
