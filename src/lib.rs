@@ -7,6 +7,7 @@ pub mod memory;
 pub mod mesh;
 pub mod metrics;
 pub mod ops;
+pub mod preview;
 pub mod process;
 pub mod recipe;
 pub mod report;

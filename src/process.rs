@@ -7,7 +7,8 @@ use crate::mesh::{LoadOptions, Mesh, MeshError, SaveOptions, load, save};
 use crate::recipe::runner::{Progress, RunOutcome, StepError, run_recipe};
 use crate::recipe::{OutputFormat, PlyEncodingSpec, Recipe};
 use crate::report::{
-    FileHash, InputReport, MeshCounts, OutputReport, RecipeReport, Report, combined_hash,
+    FileHash, InputReport, MeshCounts, OutputReport, PreviewReport, RecipeReport, Report,
+    combined_hash,
 };
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -141,6 +142,30 @@ impl Drop for Staging {
     }
 }
 
+/// The preview picture's file name beside the result `<stem>.<ext>`: named after the scan,
+/// so that several scans processed into one folder do not overwrite each other's.
+pub fn preview_file_name(stem: &str) -> String {
+    format!("{stem}.preview.png")
+}
+
+/// Renders the preview; a failure is logged and gives none (it must not fail the job).
+fn render_preview(
+    reference: &Mesh,
+    result: &Mesh,
+    recipe: &Recipe,
+) -> Option<crate::preview::Preview> {
+    match crate::preview::render(reference, result, &recipe.preview) {
+        Ok(p) => {
+            tracing::info!(ms = p.figures.render_ms, "preview drawn");
+            Some(p)
+        }
+        Err(e) => {
+            tracing::warn!(error = %e, "no preview");
+            None
+        }
+    }
+}
+
 /// Processes one scan. The result lands in `out_dir` only if everything succeeded.
 pub fn process_scan(
     input: &Path,
@@ -150,7 +175,7 @@ pub fn process_scan(
     progress: &dyn Progress,
 ) -> Result<Report, ProcessError> {
     let total_start = Instant::now();
-    let total_stages = recipe.steps.len() + 2;
+    let total_stages = recipe.steps.len() + 2 + usize::from(recipe.preview.enabled);
 
     progress.stage(0, total_stages, "load");
     let load_start = Instant::now();
@@ -175,18 +200,59 @@ pub fn process_scan(
 
     // The steps, then the final metrics against the input (a clone of it is kept while the
     // steps run, unless the recipe turns metrics off).
-    let RunOutcome { steps, metrics } = run_recipe(recipe, &mut mesh, progress, 1, total_stages)
-        .map_err(|source| ProcessError::Step {
+    let RunOutcome {
+        steps,
+        metrics,
+        reference,
+    } = run_recipe(recipe, &mut mesh, progress, 1, total_stages).map_err(|source| {
+        ProcessError::Step {
             input: input.to_path_buf(),
             source,
-        })?;
+        }
+    })?;
+
+    // The preview compares the result with the reference the metrics used (the input
+    // after the recipe's crop steps).
+    let preview = match (&reference, recipe.preview.enabled) {
+        (Some(reference), true) => {
+            progress.stage(total_stages - 2, total_stages, "preview");
+            render_preview(reference, &mesh, recipe)
+        }
+        _ => None,
+    };
+    drop(reference);
 
     progress.stage(total_stages - 1, total_stages, "write");
     let write_start = Instant::now();
+    let stem = output_stem(input);
     let staging = Staging::new(out_dir)?;
-    let written = write_mesh(&mesh, recipe, &staging.0, &output_stem(input))?;
-    let published = publish(&staging.0, &written, out_dir)?;
+    let mut written = write_mesh(&mesh, recipe, &staging.0, &stem)?;
+    let preview = preview.and_then(|preview| {
+        let path = staging.0.join(preview_file_name(&stem));
+        match crate::preview::write_png(&preview.image, &path) {
+            Ok(()) => {
+                // Before the main mesh file, which is published last.
+                written.insert(written.len() - 1, path);
+                Some(preview.figures)
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "no preview");
+                None
+            }
+        }
+    });
+    let mut published = publish(&staging.0, &written, out_dir)?;
     drop(staging);
+    let preview = match preview {
+        Some(figures) => {
+            let path = published.remove(published.len() - 2);
+            Some(PreviewReport {
+                file: FileHash::of(&path).map_err(|e| output_error(&path, e))?,
+                figures,
+            })
+        }
+        None => None,
+    };
     let output_files = published
         .iter()
         .map(|p| FileHash::of(p).map_err(|e| output_error(p, e)))
@@ -213,6 +279,7 @@ pub fn process_scan(
             files: output_files,
             counts: MeshCounts::of(&mesh),
         },
+        preview,
         load_ms,
         write_ms,
         total_ms: total_start.elapsed().as_secs_f64() * 1e3,

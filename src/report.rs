@@ -101,6 +101,14 @@ pub struct OutputReport {
     pub counts: MeshCounts,
 }
 
+/// The preview picture (`preview` module): the file written beside the result and what
+/// it shows.
+#[derive(Debug, Clone, Serialize)]
+pub struct PreviewReport {
+    pub file: FileHash,
+    pub figures: crate::preview::PreviewFigures,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
     pub scanmill_version: String,
@@ -110,6 +118,9 @@ pub struct Report {
     /// Final quality metrics of the result against the input.
     pub metrics: Value,
     pub output: OutputReport,
+    /// The preview, `null` when the recipe turns it off or it could not be drawn (a
+    /// preview that fails is logged; it never fails the job).
+    pub preview: Option<PreviewReport>,
     pub load_ms: f64,
     pub write_ms: f64,
     pub total_ms: f64,

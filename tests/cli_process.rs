@@ -65,7 +65,10 @@ fn textured_obj_is_processed_with_its_texture_and_report() {
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
         .collect();
     names.sort();
-    assert_eq!(names, ["james.jpg", "james.mtl", "james.obj"]);
+    assert_eq!(
+        names,
+        ["james.jpg", "james.mtl", "james.obj", "james.preview.png"]
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     assert_eq!(json["input"]["counts"]["faces"], 12228);

@@ -191,6 +191,7 @@ fn sigkill_mid_job_then_restart_completes_without_duplicate_or_partial_output() 
             "s/james/james.jpg",
             "s/james/james.mtl",
             "s/james/james.obj",
+            "s/james/james.preview.png",
             "s/james/james.scanmill.json"
         ]
     );
@@ -383,6 +384,12 @@ fn history_show_requeue_and_backup_while_the_daemon_runs() {
             > 0
     );
     assert!(!shown["outputs"].as_array().unwrap().is_empty());
+    // The preview picture beside the result, its path recorded.
+    let preview = shown["preview"].as_str().unwrap();
+    assert!(
+        preview.ends_with(".preview.png") && std::path::Path::new(preview).is_file(),
+        "{preview}"
+    );
     let (code, _, _) = lab.cli(&["show", "9999"]);
     assert_ne!(code, 0);
 

@@ -322,8 +322,15 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
             figures_json: s.figures.to_string(),
         })
         .collect();
+    // The preview was published into the same folder as the mesh.
+    let preview = report
+        .preview
+        .as_ref()
+        .and_then(|p| p.file.path.file_name())
+        .map(|name| final_dir.join(name).to_string_lossy().into_owned());
     Some(Finish::Done {
         output_dir: final_dir.to_string_lossy().into_owned(),
+        preview,
         outputs,
         report_json: report_value.to_string(),
         counts: [

@@ -124,6 +124,36 @@ pub fn surface_distance(
     Ok(from_queries(&forward, &backward, reference, seed))
 }
 
+/// The distance of every vertex of `mesh` to the surface of `reference` (exact closest
+/// point), in vertex order: the preview colours a result with it. A triangle of the
+/// reference that descends from the same input triangle as one around the vertex, when
+/// known, speeds up the search without changing the answer.
+pub fn vertex_distances(mesh: &Mesh, reference: &Mesh) -> Result<Vec<f64>, MetricsError> {
+    super::surface::check_measurable(mesh, "result")?;
+    let index = SurfaceIndex::new(reference, "reference")?;
+    let near = super::surface::counterparts(mesh, reference).map(|by_triangle| {
+        let mut near = vec![u32::MAX; mesh.positions.len()];
+        for (t, &hint) in by_triangle.iter().enumerate() {
+            for v in mesh.triangle_vertices(t) {
+                if near[v as usize] == u32::MAX {
+                    near[v as usize] = hint;
+                }
+            }
+        }
+        near
+    });
+    use rayon::prelude::*;
+    Ok(mesh
+        .positions
+        .par_iter()
+        .enumerate()
+        .map(|(v, &p)| match near.as_ref().map(|n| n[v]) {
+            Some(t) if t != u32::MAX => index.closest_near(p, t as usize).distance,
+            _ => index.closest(p).distance,
+        })
+        .collect())
+}
+
 /// Area-weighted outward vertex normals (zero for vertices without area around them).
 pub fn vertex_normals(mesh: &Mesh) -> Vec<DVec3> {
     let mut normals = vec![DVec3::ZERO; mesh.positions.len()];
@@ -224,6 +254,21 @@ mod tests {
         let v = vertex_deviation(&m, &m).unwrap();
         assert_eq!((v.abs_mean, v.max_abs), (0.0, 0.0));
         assert!(vertex_deviation(&grid(2, 2), &m).is_none());
+    }
+
+    #[test]
+    fn vertex_distances_of_offset_plane() {
+        let reference = grid(4, 4);
+        let mut lifted = reference.clone();
+        for p in &mut lifted.positions {
+            p.z = 0.5;
+        }
+        let d = vertex_distances(&lifted, &reference).unwrap();
+        assert_eq!(d.len(), lifted.positions.len());
+        assert!(d.iter().all(|&x| (x - 0.5).abs() < 1e-12), "{d:?}");
+        let itself = vertex_distances(&reference, &reference).unwrap();
+        assert!(itself.iter().all(|&x| x == 0.0));
+        assert!(vertex_distances(&Mesh::default(), &reference).is_err());
     }
 
     #[test]

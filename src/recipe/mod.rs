@@ -11,6 +11,7 @@ use crate::ops::fair::{FairParams, RelaxParams};
 use crate::ops::normals::NormalsParams;
 use crate::ops::seam_fix::SeamFixParams;
 use crate::ops::smooth::SmoothParams;
+use crate::preview::PreviewOptions;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
@@ -167,6 +168,8 @@ struct RecipeFile {
     #[serde(default)]
     metrics: MetricsSpec,
     #[serde(default)]
+    preview: PreviewOptions,
+    #[serde(default)]
     step: Vec<toml::Spanned<toml::Table>>,
 }
 
@@ -216,6 +219,10 @@ pub struct Recipe {
     pub output: OutputSpec,
     pub input: InputSpec,
     pub metrics: MetricsSpec,
+    /// The `[preview]` table. Left out of the resolved form (and so of the hash) while it
+    /// has its defaults, so that recipes written before previews existed keep their hash.
+    #[serde(skip_serializing_if = "PreviewOptions::is_default")]
+    pub preview: PreviewOptions,
     pub steps: Vec<Step>,
     /// 1-based indices of the steps that asked for their own metrics (`metrics = true`).
     #[serde(skip_serializing_if = "Vec::is_empty", default)]
@@ -251,6 +258,9 @@ impl Recipe {
             .options()
             .validate()
             .map_err(|message| parse_error(line_of(0), format!("[metrics]: {message}")))?;
+        file.preview
+            .validate()
+            .map_err(|message| parse_error(line_of(0), format!("[preview]: {message}")))?;
         let mut steps = Vec::with_capacity(file.step.len());
         let mut step_metrics = Vec::new();
         for spanned in file.step {
@@ -285,6 +295,7 @@ impl Recipe {
             output: file.output,
             input: file.input,
             metrics: file.metrics,
+            preview: file.preview,
             steps,
             step_metrics,
         })
@@ -414,5 +425,24 @@ mod tests {
         let c = parse("[metrics]\nenabled = false\n[[step]]\nkind = \"normals\"\n").unwrap();
         assert_eq!(a.hash(), b.hash());
         assert_ne!(a.hash(), c.hash());
+    }
+
+    #[test]
+    fn preview_table() {
+        let a = parse("[[step]]\nkind = \"normals\"\n").unwrap();
+        assert!(a.preview.enabled && a.preview.size == 512);
+        let b = parse("[preview]\nenabled = true\n[[step]]\nkind = \"normals\"\n").unwrap();
+        assert_eq!(a.hash(), b.hash(), "defaults leave the hash alone");
+        let c = parse("[preview]\nsize = 256\nview = \"+y\"\n").unwrap();
+        assert_eq!(c.preview.up_axis(), crate::preview::camera::Axis::PosZ);
+        assert_ne!(c.hash(), parse("").unwrap().hash());
+        let e = parse("[preview]\nview = \"front\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("-z") && e.contains("+x"), "{e}");
+        let e = parse("[preview]\nsize = 8\n").unwrap_err().to_string();
+        assert!(e.contains("[preview]") && e.contains("size"), "{e}");
+        let e = parse("[preview]\nsise = 8\n").unwrap_err().to_string();
+        assert!(e.contains("supersample"), "{e}");
     }
 }

@@ -76,10 +76,13 @@ pub struct RunOutcome {
     /// recipe's crop steps left it, see [`run_recipe`]), or `Null` when the recipe turns
     /// metrics off.
     pub metrics: Value,
+    /// The reference the metrics measured against (the input, after the recipe's crop
+    /// steps), kept for the preview; `None` when the recipe wants neither.
+    pub reference: Option<Arc<Mesh>>,
 }
 
 /// Runs the steps and, unless the recipe's `[metrics]` say otherwise, measures the result
-/// against the input.
+/// against the input (which is kept and returned if the metrics or the preview want it).
 ///
 /// The reference is the input *after the recipe's crop steps* (the input itself when there
 /// are none): a crop removes surface on purpose, and measuring it would drown what the
@@ -93,11 +96,12 @@ pub fn run_recipe(
     first_stage: usize,
     total_stages: usize,
 ) -> Result<RunOutcome, StepError> {
-    if !recipe.metrics.enabled {
+    if !recipe.metrics.enabled && !recipe.preview.enabled {
         let steps = run_steps(recipe, mesh, progress, first_stage, total_stages)?;
         return Ok(RunOutcome {
             steps,
             metrics: Value::Null,
+            reference: None,
         });
     }
     // One copy of the input serves both the final metrics and `seam_fix` (a 400k-triangle
@@ -119,12 +123,23 @@ pub fn run_recipe(
             }
         },
     )?;
+    if !recipe.metrics.enabled {
+        return Ok(RunOutcome {
+            steps,
+            metrics: Value::Null,
+            reference: Some(reference),
+        });
+    }
     let mut metrics = metrics_value(mesh, &reference, &recipe.metrics.options());
     if let Value::Object(map) = &mut metrics {
         let which = if cropped { "input-after-crop" } else { "input" };
         map.insert("reference".into(), Value::from(which));
     }
-    Ok(RunOutcome { steps, metrics })
+    Ok(RunOutcome {
+        steps,
+        metrics,
+        reference: Some(reference),
+    })
 }
 
 /// Runs every step of `recipe` on `mesh`. `first_stage`/`total_stages` place the steps
@@ -228,11 +243,18 @@ mod tests {
     fn metrics_off_and_crop_errors() {
         let r = recipe("[metrics]\nenabled = false\n[[step]]\nkind = \"normals\"\n");
         let mut mesh = uv_sphere(1.0, 6, 8);
+        let out = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
+        assert!(out.metrics.is_null());
+        // Kept for the preview: the input before the steps (normals moved nothing).
+        let reference = out.reference.expect("kept for the preview");
+        assert_eq!(reference.positions, mesh.positions);
+        assert!(reference.normals.is_empty() && !mesh.normals.is_empty());
+        let r = recipe("[metrics]\nenabled = false\n[preview]\nenabled = false\n");
         assert!(
             run_recipe(&r, &mut mesh, &NoProgress, 0, 1)
                 .unwrap()
-                .metrics
-                .is_null()
+                .reference
+                .is_none()
         );
         let r = recipe("[[step]]\nkind = \"crop\"\nmin = [5, 5, 5]\nmax = [6, 6, 6]\n");
         let e = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap_err();

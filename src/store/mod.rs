@@ -119,6 +119,8 @@ pub struct ClaimedJob {
 pub enum Finish {
     Done {
         output_dir: String,
+        /// The preview picture, if one was drawn.
+        preview: Option<String>,
         outputs: Vec<(String, u64, String)>,
         report_json: String,
         counts: [i64; 4],
@@ -498,6 +500,7 @@ impl Store {
         let final_state = match outcome {
             Finish::Done {
                 output_dir,
+                preview,
                 outputs,
                 report_json,
                 counts,
@@ -507,7 +510,7 @@ impl Store {
                 tx.execute(
                     "UPDATE job SET state='done', retryable=0, finished_at=?2, updated_at=?2, lease_owner=NULL,
                         output_dir=?3, error_kind=NULL, error=NULL, in_vertices=?4, in_faces=?5,
-                        out_vertices=?6, out_faces=?7, process_ms=?8, report_json=?9 WHERE id=?1",
+                        out_vertices=?6, out_faces=?7, process_ms=?8, report_json=?9, preview=?10 WHERE id=?1",
                     params![
                         job.id,
                         now,
@@ -517,7 +520,8 @@ impl Store {
                         counts[2],
                         counts[3],
                         process_ms,
-                        report_json
+                        report_json,
+                        preview
                     ],
                 )
                 .map_err(sq)?;

@@ -4,7 +4,7 @@
 //! keeps the audit trail of when each was applied and by which version of scanmill.
 
 /// Migration `i` brings the schema from version `i` to `i + 1`.
-pub const MIGRATIONS: &[&str] = &[V1];
+pub const MIGRATIONS: &[&str] = &[V1, V2];
 
 /// The newest schema version this binary knows.
 pub const LATEST: u32 = MIGRATIONS.len() as u32;
@@ -126,4 +126,9 @@ CREATE TABLE waiting (
     updated_at INTEGER NOT NULL,
     PRIMARY KEY (root, rel_path)
 ) STRICT;
+"#;
+
+/// The preview picture of a finished job (absolute path; NULL when none was drawn).
+const V2: &str = r#"
+ALTER TABLE job ADD COLUMN preview TEXT;
 "#;

@@ -65,6 +65,26 @@ fn migrations_apply_once_and_record_version() {
 }
 
 #[test]
+fn a_version_1_database_gains_the_preview_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("db.sqlite");
+    let conn = rusqlite::Connection::open(&path).unwrap();
+    conn.execute_batch(schema::MIGRATIONS[0]).unwrap();
+    conn.pragma_update(None, "user_version", 1).unwrap();
+    drop(conn);
+    let store = Store::open(&path).unwrap();
+    let columns: Vec<String> = store
+        .connection()
+        .prepare("SELECT name FROM pragma_table_info('job')")
+        .unwrap()
+        .query_map([], |r| r.get(0))
+        .unwrap()
+        .collect::<rusqlite::Result<_>>()
+        .unwrap();
+    assert!(columns.iter().any(|c| c == "preview"), "{columns:?}");
+}
+
+#[test]
 fn newer_schema_is_refused() {
     let (dir, store) = open();
     store
@@ -103,6 +123,7 @@ fn claim_finish_done_records_everything() {
     assert!(s.claim(&owner()).unwrap().is_none(), "only one job");
     let fin = Finish::Done {
         output_dir: "/out/a".into(),
+        preview: Some("/out/a/a.preview.png".into()),
         outputs: vec![("/out/a/a.obj".into(), 3, "cc".into())],
         report_json: "{\"metrics\":{\"x\":1}}".into(),
         counts: [1, 2, 3, 4],
@@ -124,6 +145,7 @@ fn claim_finish_done_records_everything() {
     let shown = s.show(c.id).unwrap();
     assert_eq!(shown["state"], "done");
     assert_eq!(shown["report"]["metrics"]["x"], 1);
+    assert_eq!(shown["preview"], "/out/a/a.preview.png");
     assert_eq!(shown["attempts_log"][0]["steps"][0]["kind"], "normals");
     let h = s.history(&HistoryFilter::default()).unwrap();
     assert_eq!(h.len(), 1);
