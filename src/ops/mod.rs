@@ -7,3 +7,4 @@ pub mod normals;
 pub mod seam_fix;
 pub mod smooth;
 pub mod subdivide;
+pub mod texture_follow;

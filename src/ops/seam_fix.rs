@@ -105,7 +105,11 @@ fn project(tri: [DVec3; 3], p: DVec3) -> Option<(f64, f64)> {
     Some((d.dot(b1), d.dot(b2)))
 }
 
-/// Repairs `mesh` (a result whose `triangle_origins` index `input`).
+/// Repairs `mesh`, a decimation of `input`. `mesh.triangle_origins` index the mesh as
+/// loaded; so do `input.triangle_origins` when `input` is itself derived from it (cropped:
+/// then each origin is looked up among `input`'s triangles, any piece of a clipped triangle
+/// serving, since all lie in its plane with its texture mapping), else `input` is the
+/// loaded mesh and origins index it directly.
 pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFixReport {
     let mut report = SeamFixReport {
         triangles: mesh.triangles.len(),
@@ -118,8 +122,24 @@ pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFi
     let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
     let half = ((hi - lo).max_element() * 0.5).max(f64::MIN_POSITIVE);
     let factor = params.factor();
+    let by_origin: Option<Vec<u32>> = (!input.triangle_origins.is_empty()).then(|| {
+        let size = input
+            .triangle_origins
+            .iter()
+            .max()
+            .map_or(0, |&m| m as usize + 1);
+        let mut map = vec![u32::MAX; size];
+        for (t, &o) in input.triangle_origins.iter().enumerate() {
+            map[o as usize] = t as u32;
+        }
+        map
+    });
     for t in 0..mesh.triangles.len() {
         let o = mesh.triangle_origin(t) as usize;
+        let o = match &by_origin {
+            Some(map) => map.get(o).map_or(usize::MAX, |&r| r as usize),
+            None => o,
+        };
         let corners = mesh.triangles[t];
         let now_p = mesh.triangle_positions(t);
         let now_t = corners.map(|w| mesh.wedge_texcoord(w));

@@ -33,8 +33,8 @@ fn figures<T: serde::Serialize>(value: T) -> serde_json::Value {
     serde_json::to_value(value).expect("step figures always serialise")
 }
 
-/// Applies one step to the mesh and returns its figures. `input` is the mesh as loaded,
-/// kept only when a step needs it (`seam_fix` projects onto the input triangles).
+/// Applies one step to the mesh and returns its figures. `input` is the mesh `seam_fix`
+/// projects onto (see [`run_steps_observed`]), kept only when a step needs it.
 fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_json::Value, String> {
     match step {
         Step::Normals(p) => Ok(figures(ops::normals::recompute_normals(mesh, p))),
@@ -50,10 +50,31 @@ fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_jso
             let input = input.ok_or("seam_fix needs the loaded input mesh")?;
             Ok(figures(ops::seam_fix::seam_fix(mesh, input, p)))
         }
-        Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
-        Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
-        Step::Smooth(p) => Ok(figures(ops::smooth::smooth(mesh, p))),
+        Step::Relax(p) => Ok(with_texture_follow(mesh, |m| {
+            figures(ops::fair::relax(m, p))
+        })),
+        Step::Fair(p) => Ok(with_texture_follow(mesh, |m| {
+            figures(ops::fair::fair(m, p))
+        })),
+        Step::Smooth(p) => Ok(with_texture_follow(mesh, |m| {
+            figures(ops::smooth::smooth(m, p))
+        })),
     }
+}
+
+/// Runs a step that only moves vertices, then carries the texture along the surface
+/// (`ops::texture_follow`); its figures go into the step's figures as `texture_follow`.
+fn with_texture_follow(
+    mesh: &mut Mesh,
+    step: impl FnOnce(&mut Mesh) -> serde_json::Value,
+) -> serde_json::Value {
+    let before = mesh.has_texcoords().then(|| mesh.positions.clone());
+    let mut value = step(mesh);
+    if let (Some(before), Value::Object(map)) = (before, &mut value) {
+        let report = ops::texture_follow::follow(mesh, before);
+        map.insert("texture_follow".into(), figures(report));
+    }
+    value
 }
 
 /// Metrics of `result` against `reference` as report JSON; a failure (which only a bug in a
@@ -179,19 +200,32 @@ fn run_steps_observed(
     after_step: &mut dyn FnMut(&Step, &Mesh),
 ) -> Result<Vec<StepReport>, StepError> {
     let mut reports = Vec::with_capacity(recipe.steps.len());
+    // `seam_fix` projects onto the mesh as it was just before the decimation (positions
+    // and texture coordinates as the decimator saw them), not onto the mesh as loaded:
+    // after `relax` and `fair` the loaded positions are up to a few edge lengths away, and
+    // projecting the faired corners onto them smeared texture along the eyebrows of Lee
+    // Perry-Smith. Triangle origins always index the loaded mesh; seam_fix maps them
+    // through the snapshot's own origins when a crop changed its triangles.
+    let mut seam_reference = input;
+    let mut changed = false;
     for (i, step) in recipe.steps.iter().enumerate() {
+        if changed && seam_reference.is_some() && matches!(step, Step::Decimate(_)) {
+            seam_reference = Some(Arc::new(mesh.clone()));
+        }
         let before = recipe.step_metrics.contains(&(i + 1)).then(|| mesh.clone());
         progress.stage(first_stage + i, total_stages, step.kind());
         let (vertices_before, faces_before) = (mesh.positions.len(), mesh.triangles.len());
         let start = Instant::now();
         let span = tracing::info_span!("step", index = i + 1, kind = step.kind());
         let _guard = span.enter();
-        let figures = apply(step, mesh, input.as_deref()).map_err(|message| StepError {
-            index: i + 1,
-            kind: step.kind(),
-            message,
-        })?;
+        let figures =
+            apply(step, mesh, seam_reference.as_deref()).map_err(|message| StepError {
+                index: i + 1,
+                kind: step.kind(),
+                message,
+            })?;
         debug_assert!(mesh.check_invariants().is_ok(), "{}", step.kind());
+        changed = true;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
         tracing::debug!(wall_ms, faces = mesh.triangles.len(), "step done");
         let metrics = before.map(|b| metrics_value(mesh, &b, &recipe.metrics.options()));
