@@ -1,5 +1,6 @@
-//! The texture stays on the surface when `relax` and `fair` slide vertices along it
-//! (src/ops/texture_follow.rs), on the real textured face james_face_stereo_capture.
+//! The texture stays on the surface: when `relax` and `fair` slide vertices along it
+//! (src/ops/texture_follow.rs, on james_face_stereo_capture), and when `seam_fix` repairs a
+//! decimation inside one chart (src/ops/seam_fix.rs, on facefuns).
 
 use scanmill::mesh::LoadOptions;
 use scanmill::mesh::io::load;
@@ -36,4 +37,27 @@ fn relax_and_fair_keep_the_photo_on_the_face() {
         assert!(follow["corners"].as_u64().unwrap() > 6000, "{follow}");
         assert!(follow["mean_shift"].as_f64().unwrap() > 0.0, "{follow}");
     }
+}
+
+#[test]
+fn seam_fix_cuts_no_seams_into_a_seamless_face() {
+    // facefuns has one texture chart and no seams. The thesis' per-triangle repair gave
+    // its decimation 12,763 seam edges; corners inside one chart are now fixed in place.
+    let options = LoadOptions {
+        texture_override: Some("../shared/data/textured/facefuns_di3d_face/example.png".into()),
+        ..LoadOptions::default()
+    };
+    let (mut mesh, _) = load(
+        Path::new("../shared/data/textured/facefuns_di3d_face/example.obj"),
+        &options,
+    )
+    .unwrap();
+    let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\n[[step]]\nkind = \"seam_fix\"\n";
+    let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
+    let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
+    let fix = &out.steps[1].figures;
+    assert!(fix["repaired"].as_u64().unwrap() > 0, "{fix}");
+    assert_eq!(fix["corners_split"], 0, "{fix}");
+    assert_eq!(out.metrics["topology"]["after"]["texture_seam_edges"], 0);
+    assert_eq!(out.metrics["topology"]["cracks"], 0);
 }

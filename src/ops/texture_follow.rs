@@ -31,7 +31,7 @@ pub struct FollowReport {
 
 /// Chart of each triangle: triangles sharing an edge whose two ends have the same texture
 /// coordinates on both sides are in one chart.
-fn charts(mesh: &Mesh) -> Vec<u32> {
+pub(crate) fn charts(mesh: &Mesh) -> Vec<u32> {
     // Each triangle edge keyed by its vertices and their texture coordinate indices, ordered
     // by vertex; equal keys = a chart-internal edge.
     let mut keys: Vec<([u32; 4], u32)> = Vec::with_capacity(3 * mesh.triangles.len());
@@ -77,7 +77,41 @@ fn charts(mesh: &Mesh) -> Vec<u32> {
         .collect()
 }
 
-fn uv_at(mesh: &Mesh, hit: &TriangleHit) -> Option<DVec2> {
+/// The triangles around each wedge (CSR).
+pub(crate) struct WedgeTriangles {
+    offsets: Vec<u32>,
+    triangles: Vec<u32>,
+}
+
+impl WedgeTriangles {
+    pub(crate) fn of(mesh: &Mesh) -> Self {
+        let mut offsets = vec![0u32; mesh.wedges.len() + 1];
+        for tri in &mesh.triangles {
+            for &w in tri {
+                offsets[w as usize + 1] += 1;
+            }
+        }
+        for i in 1..offsets.len() {
+            offsets[i] += offsets[i - 1];
+        }
+        let mut next = offsets.clone();
+        let mut triangles = vec![0u32; 3 * mesh.triangles.len()];
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for &w in tri {
+                triangles[next[w as usize] as usize] = t as u32;
+                next[w as usize] += 1;
+            }
+        }
+        WedgeTriangles { offsets, triangles }
+    }
+
+    pub(crate) fn of_wedge(&self, w: Index) -> &[u32] {
+        &self.triangles[self.offsets[w as usize] as usize..self.offsets[w as usize + 1] as usize]
+    }
+}
+
+/// Texture coordinates of `mesh` at a point found on it.
+pub(crate) fn uv_at(mesh: &Mesh, hit: &TriangleHit) -> Option<DVec2> {
     let [a, b, c] = mesh.triangles[hit.triangle as usize].map(|w| mesh.wedge_texcoord(w));
     Some(a? * hit.bary.x + b? * hit.bary.y + c? * hit.bary.z)
 }
@@ -105,31 +139,14 @@ pub fn follow(mesh: &mut Mesh, before_positions: Vec<DVec3>) -> FollowReport {
 /// and how many came from the corner's own triangles (across a seam).
 fn read_back(before: &Mesh, moved: &[DVec3]) -> (Vec<Option<DVec2>>, usize) {
     let chart = charts(before);
-    // The triangles of each wedge (CSR); their chart is the wedge's (a wedge never spans a
-    // seam).
-    let mut offsets = vec![0u32; before.wedges.len() + 1];
-    for tri in &before.triangles {
-        for &w in tri {
-            offsets[w as usize + 1] += 1;
-        }
-    }
-    for i in 1..offsets.len() {
-        offsets[i] += offsets[i - 1];
-    }
-    let mut next = offsets.clone();
-    let mut around = vec![0u32; 3 * before.triangles.len()];
-    for (t, tri) in before.triangles.iter().enumerate() {
-        for &w in tri {
-            around[next[w as usize] as usize] = t as u32;
-            next[w as usize] += 1;
-        }
-    }
+    // The triangles of each wedge; their chart is the wedge's (a wedge never spans a seam).
+    let around = WedgeTriangles::of(before);
     let bvh = TriangleBvh::new(before, (0..before.triangles.len() as u32).collect());
     // Per wedge: new texture coordinates (or none) and whether it went across a seam.
     let updates: Vec<Option<(DVec2, bool)>> = (0..before.wedges.len())
         .into_par_iter()
         .map(|w| {
-            let own_triangles = &around[offsets[w] as usize..offsets[w + 1] as usize];
+            let own_triangles = around.of_wedge(w as Index);
             let &own = own_triangles.first()?;
             let wedge = before.wedges[w];
             wedge.texcoord?;
