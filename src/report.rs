@@ -126,6 +126,27 @@ pub struct Report {
     pub total_ms: f64,
 }
 
+impl Report {
+    /// The report with its output and preview paths moved from folder `from` to folder
+    /// `to`: the daemon writes into a staging folder and publishes it elsewhere, and the
+    /// recorded paths must be where the files are (`to` = "" makes them relative).
+    pub fn with_output_folder(&self, from: &Path, to: &Path) -> Report {
+        let rebase = |path: &mut PathBuf| {
+            if let Ok(rest) = path.strip_prefix(from) {
+                *path = to.join(rest);
+            }
+        };
+        let mut report = self.clone();
+        for file in &mut report.output.files {
+            rebase(&mut file.path);
+        }
+        if let Some(preview) = &mut report.preview {
+            rebase(&mut preview.file.path);
+        }
+        report
+    }
+}
+
 /// One hash over several files: each file's name-independent digest, in the given order.
 pub fn combined_hash(files: &[FileHash]) -> String {
     let mut hasher = Sha256::new();

@@ -390,6 +390,14 @@ fn history_show_requeue_and_backup_while_the_daemon_runs() {
         preview.ends_with(".preview.png") && std::path::Path::new(preview).is_file(),
         "{preview}"
     );
+    // Every path recorded is where the files are now, never the staging folder.
+    let report_preview = shown["report"]["preview"]["file"]["path"].as_str().unwrap();
+    assert_eq!(report_preview, preview);
+    for file in shown["report"]["output"]["files"].as_array().unwrap() {
+        let path = file["path"].as_str().unwrap();
+        assert!(std::path::Path::new(path).is_file(), "{path}");
+    }
+    assert!(!shown.to_string().contains(".scanmill-staging"), "{shown}");
     let (code, _, _) = lab.cli(&["show", "9999"]);
     assert_ne!(code, 0);
 

@@ -240,7 +240,8 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
     if let Err(changed) = check_inputs(job) {
         return Some(*changed);
     }
-    let report_value = serde_json::to_value(&report).unwrap_or_default();
+    // The sidecar sits beside the files: its paths are relative to its folder.
+    let sidecar_report = report.with_output_folder(&scan_dir, Path::new(""));
     let sidecar = json!({
         "job_id": job.id,
         "job_key": job.job_key,
@@ -258,7 +259,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         "daemon": spec.owner.id,
         "started": crate::store::query::iso_time(started_ms),
         "finished": crate::store::query::iso_time(now_ms()),
-        "report": report_value,
+        "report": serde_json::to_value(&sidecar_report).unwrap_or_default(),
     });
     let sidecar_path = scan_dir.join(format!("{stem}{SIDECAR_SUFFIX}"));
     let written = serde_json::to_vec_pretty(&sidecar)
@@ -296,6 +297,8 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
             }
         };
     tracing::info!(output = %final_dir.display(), ms = report.total_ms, "published");
+    let report = report.with_output_folder(&scan_dir, &final_dir);
+    let report_value = serde_json::to_value(&report).unwrap_or_default();
     let outputs = report
         .output
         .files
