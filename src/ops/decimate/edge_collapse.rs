@@ -13,16 +13,23 @@ fn sides<const M: usize>(work: &Work<M>, t: usize) -> [[u32; 2]; 3] {
 
 /// The cheapest side of triangle `t` by the quick key that the placement rules allow.
 pub fn best_side<const M: usize>(work: &Work<M>, t: usize) -> Result<(usize, f64), Refusal> {
+    let all = sides(work, t);
+    combine([0, 1, 2].map(|i| work.quick_cost(&all[i])))
+}
+
+/// The cheapest of a triangle's three side costs (the first on ties), or why none is
+/// allowed: the last refusal other than `Locked`, `Locked` only if every side is (then it
+/// stays so until the triangle dies).
+pub fn combine(costs: [Result<f64, Refusal>; 3]) -> Result<(usize, f64), Refusal> {
     let mut best: Option<(usize, f64)> = None;
     let mut cause = Refusal::Locked;
-    for (i, side) in sides(work, t).iter().enumerate() {
-        match work.quick_cost(side) {
+    for (i, c) in costs.into_iter().enumerate() {
+        match c {
             Ok(cost) => {
                 if best.is_none_or(|(_, b)| cost < b) {
                     best = Some((i, cost));
                 }
             }
-            // Locked only if every side is (then it stays so until the triangle dies).
             Err(c) if c != Refusal::Locked => cause = c,
             Err(_) => {}
         }

@@ -15,6 +15,7 @@ pub mod cluster;
 pub mod edge_collapse;
 pub mod face_collapse;
 pub mod guards;
+mod heap;
 pub mod quadric;
 pub mod work;
 
@@ -242,6 +243,43 @@ pub struct RefusedCounts {
 }
 
 impl RefusedCounts {
+    /// The causes with their counts, largest first, with a description of each.
+    pub fn ranked(&self) -> Vec<(usize, &'static str)> {
+        let mut v = vec![
+            (
+                self.seam,
+                "would close a texture seam or move a seam vertex off its seam",
+            ),
+            (
+                self.locked,
+                "would merge two fixed vertices (seam junctions, non-manifold or kept border vertices)",
+            ),
+            (self.boundary, "would move a border vertex off its border"),
+            (
+                self.link,
+                "would break the link condition (non-manifold, duplicate face, hole closed)",
+            ),
+            (self.flip, "would turn a triangle over"),
+            (self.texture_flip, "would fold the texture over"),
+            (self.degenerate, "would make a degenerate triangle"),
+            (self.max_error, "exceeds max_error"),
+        ];
+        v.retain(|e| e.0 > 0);
+        v.sort_by_key(|e| std::cmp::Reverse(e.0));
+        v
+    }
+
+    pub fn total(&self) -> usize {
+        self.link
+            + self.flip
+            + self.texture_flip
+            + self.degenerate
+            + self.seam
+            + self.boundary
+            + self.locked
+            + self.max_error
+    }
+
     pub fn count(&mut self, cause: Refusal) {
         match cause {
             Refusal::Link => self.link += 1,
@@ -271,6 +309,13 @@ pub struct DecimateReport {
     pub stopped_by: String,
     pub collapses: usize,
     pub refused: RefusedCounts,
+    /// When the target was not reached: every collapse still possible (edges for edge
+    /// collapse, triangles for face collapse), by the reason it is refused.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub blocked: Option<RefusedCounts>,
+    /// Why the step stopped short of its target, in words (none when it reached it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_note: Option<String>,
     /// Candidate evaluations (quadric solves) in the collapse loop.
     pub evaluations: usize,
     /// Applied collapses that used the ill-conditioned fallback (§3.9).
@@ -321,6 +366,9 @@ pub fn decimate(
             .map(|t| mesh.triangle_origin(t))
             .collect();
     }
+    if let Some(note) = &report.stop_note {
+        tracing::info!("{note}");
+    }
     tracing::info!(
         method = report.method,
         faces = report.faces_after,
@@ -365,7 +413,9 @@ fn run<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> (Mesh, DecimateR
                 cos_max_normal_change: params.max_normal_change.to_radians().cos(),
                 guards: params.guards,
             };
+            let (t0, c0) = (std::time::Instant::now(), cpu_seconds());
             let mut work = Work::<M>::new(mesh, w, cfg);
+            let (t1, c1) = (std::time::Instant::now(), cpu_seconds());
             // Normalised units: the largest box side is 1.
             let to_diag = if diag > 0.0 {
                 1.0 / (work.inv_scale * diag)
@@ -380,6 +430,7 @@ fn run<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> (Mesh, DecimateR
             };
             let target = params.target_faces.unwrap_or(0);
             let stats = face_collapse::run(&mut work, op, params.priority, target, max_error);
+            let (t2, c2) = (std::time::Instant::now(), cpu_seconds());
             let classes = work.classes;
             let report = DecimateReport {
                 error_reached: stats.max_error * to_diag,
@@ -390,6 +441,26 @@ fn run<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> (Mesh, DecimateR
                 },
                 collapses: stats.collapses,
                 refused: stats.refused,
+                stop_note: stats.blocked.map(|b| {
+                    let what = if op == Operator::Edge {
+                        "edge collapses"
+                    } else {
+                        "face collapses"
+                    };
+                    let causes: Vec<String> = b
+                        .ranked()
+                        .iter()
+                        .map(|(n, why)| format!("{n} {why}"))
+                        .collect();
+                    format!(
+                        "stopped at {} faces, short of the target {}: all {} {what} left are refused: {}",
+                        work.live,
+                        target,
+                        b.total(),
+                        causes.join("; ")
+                    )
+                }),
+                blocked: stats.blocked,
                 evaluations: stats.evaluations,
                 ill_conditioned: stats.ill_conditioned,
                 interior_vertices: classes.interior,
@@ -398,9 +469,34 @@ fn run<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> (Mesh, DecimateR
                 fixed_vertices: classes.fixed,
                 ..Default::default()
             };
-            (work.into_mesh(), report)
+            let out = work.into_mesh();
+            tracing::debug!(
+                work_ms = (t1 - t0).as_secs_f64() * 1e3,
+                collapse_ms = (t2 - t1).as_secs_f64() * 1e3,
+                output_ms = t2.elapsed().as_secs_f64() * 1e3,
+                work_cpu_ms = (c1 - c0) * 1e3,
+                collapse_cpu_ms = (c2 - c1) * 1e3,
+                output_cpu_ms = (cpu_seconds() - c2) * 1e3,
+                "decimate phases"
+            );
+            (out, report)
         }
     }
+}
+
+/// CPU time of the process (all threads) in seconds, for the phase timings in the debug log (the
+/// machine is shared, so wall time alone says little).
+pub(crate) fn cpu_seconds() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `ts` is a valid, writable timespec; the call only writes it.
+    let rc = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    if rc != 0 {
+        return 0.0;
+    }
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
 }
 
 #[cfg(test)]

@@ -282,3 +282,26 @@ fn clustering_reaches_about_the_target_with_origins() {
         }
     }
 }
+
+#[test]
+fn octahedral_normals_round_trip() {
+    use work::{OCT_ZERO, oct_decode, oct_encode};
+    let dirs = [
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.3, -0.4, 0.5],
+        [-0.7, 0.1, -0.2],
+        [1e-9, 2e-9, -3e-9],
+    ];
+    for d in dirs {
+        let n = DVec3::from_array(d).normalize();
+        let back = DVec3::from_array(oct_decode(oct_encode(d))).normalize();
+        assert!(n.angle_between(back) < 1e-4, "{d:?} → {back:?}");
+    }
+    assert_eq!(oct_encode([0.0; 3]), OCT_ZERO);
+    assert_eq!(oct_decode(OCT_ZERO), [0.0; 3]);
+}

@@ -12,7 +12,8 @@ use super::guards::{
     uv_area,
 };
 use super::quadric::{
-    AttrPart, Quadric, Reduced, Weights, cross, dense_condition_number, dot, sub,
+    AttrPart, Quadric, Reduced, WedgeAttrs, WedgeQuadrics, Weights, cross, dense_condition_number,
+    dot, sub,
 };
 use super::{BoundaryMode, Conditioning, Fallback, Refusal};
 use crate::mesh::{Index, Mesh, Wedge};
@@ -20,6 +21,45 @@ use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 pub const NIL: u32 = u32::MAX;
+
+/// Octahedral encoding of a direction (any length; zero stays zero) in two signed 16-bit
+/// halves: the direction is projected onto the octahedron |x| + |y| + |z| = 1 and the
+/// lower half folded over onto the upper. Angular error below 1e-4 rad. The zero vector
+/// (a degenerate input triangle) gets a code of its own ([`OCT_ZERO`]: −32768 never
+/// comes out of the quantiser).
+pub fn oct_encode(n: [f64; 3]) -> u32 {
+    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
+    if !(l1 > 0.0) || !l1.is_finite() {
+        return OCT_ZERO;
+    }
+    let (mut x, mut y) = (n[0] / l1, n[1] / l1);
+    if n[2] < 0.0 {
+        (x, y) = ((1.0 - y.abs()) * x.signum(), (1.0 - x.abs()) * y.signum());
+    }
+    let q = |v: f64| ((v.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16 as u32;
+    q(x) | (q(y) << 16)
+}
+
+pub const OCT_ZERO: u32 = 0x8000_8000;
+
+/// Inverse of [`oct_encode`], up to length (not normalised); zero for zero.
+pub fn oct_decode(e: u32) -> [f64; 3] {
+    if e == OCT_ZERO {
+        return [0.0; 3];
+    }
+    let x = (e as u16 as i16) as f64 / 32767.0;
+    let y = ((e >> 16) as u16 as i16) as f64 / 32767.0;
+    let z = 1.0 - x.abs() - y.abs();
+    if z < 0.0 {
+        [
+            (1.0 - y.abs()) * x.signum(),
+            (1.0 - x.abs()) * y.signum(),
+            z,
+        ]
+    } else {
+        [x, y, z]
+    }
+}
 
 /// Settings of the merge machinery, resolved from the step parameters.
 #[derive(Debug, Clone, Copy)]
@@ -151,12 +191,13 @@ pub struct Work<'a, const M: usize> {
     /// Vertex indices of each triangle; `[NIL; 3]` once deleted.
     pub tv: Vec<[u32; 3]>,
     pub wvert: Vec<u32>,
-    pub wattr: Vec<[f64; M]>,
-    /// Unit normal of each input triangle (f32: only its direction is tested, and it is
-    /// read once per surviving triangle per collapse, so it should be compact).
-    pub onormal: Vec<[f32; 3]>,
+    pub wattr: WedgeAttrs<M>,
+    /// Unit normal of each input triangle, octahedron-encoded in 2 × 16 bits (only the
+    /// sign of its dot product with a new normal is tested, and it is read once per
+    /// surviving triangle per collapse, so it should be compact: 4 instead of 12 bytes).
+    pub onormal: Vec<u32>,
     /// Attribute part of each wedge quadric.
-    pub wq: Vec<AttrPart<M>>,
+    pub wq: WedgeQuadrics<M>,
     /// Position part of each vertex quadric, summed over its wedges and reduced (their
     /// attribute blocks eliminated, §3.8).
     pub vred: Vec<Reduced>,
@@ -187,10 +228,8 @@ impl<'a, const M: usize> Work<'a, M> {
         let nv = pos.len();
         let tris = input.triangles.clone();
         let wvert: Vec<u32> = input.wedges.iter().map(|w| w.vertex).collect();
-        let wattr: Vec<[f64; M]> = input
-            .wedges
-            .par_iter()
-            .map(|wd| {
+        let wattr = WedgeAttrs::new(
+            input.wedges.iter().map(|wd| {
                 let mut a = [0.0; M];
                 let mut k = 0;
                 if has_uv {
@@ -208,8 +247,9 @@ impl<'a, const M: usize> Work<'a, M> {
                     a[k + 2] = n.z;
                 }
                 a
-            })
-            .collect();
+            }),
+            has_normals,
+        );
         // Corner lists, ascending (built by prepending in reverse).
         let mut vfirst = vec![NIL; nv];
         let mut cnext = vec![NIL; tris.len() * 3];
@@ -235,17 +275,11 @@ impl<'a, const M: usize> Work<'a, M> {
             tv,
             wvert,
             wattr,
-            wq: Vec::new(),
+            wq: WedgeQuadrics::default(),
             vred: Vec::new(),
             onormal: (0..input.triangles.len())
                 .into_par_iter()
-                .map(|t| {
-                    input
-                        .triangle_cross(t)
-                        .normalize_or_zero()
-                        .as_vec3()
-                        .to_array()
-                })
+                .map(|t| oct_encode(input.triangle_cross(t).to_array()))
                 .collect(),
             wchanged: vec![false; nw],
             w,
@@ -254,86 +288,62 @@ impl<'a, const M: usize> Work<'a, M> {
             cfg,
             classes: ClassCounts::default(),
         };
+        let (t0, c0) = (std::time::Instant::now(), super::cpu_seconds());
         work.quadrics();
+        let (t1, c1) = (std::time::Instant::now(), super::cpu_seconds());
         work.classify();
+        tracing::debug!(
+            quadrics_ms = (t1 - t0).as_secs_f64() * 1e3,
+            classify_ms = t1.elapsed().as_secs_f64() * 1e3,
+            quadrics_cpu_ms = (c1 - c0) * 1e3,
+            classify_cpu_ms = (super::cpu_seconds() - c1) * 1e3,
+            "decimate set-up"
+        );
         work
     }
 
     /// Each wedge's quadric is the sum of the face quadrics of its triangles (§5.6
     /// "Initial quadrics"); each vertex keeps the position part of its wedges' sum, reduced.
-    /// In parallel over vertices (a wedge belongs to one vertex), each sum in ascending
-    /// corner order, so the result is the same whatever the thread count.
+    /// One pass in parallel over vertices: each face quadric is built once per corner, its
+    /// position part summed into the vertex and its attribute part into the corner's wedge
+    /// (a wedge belongs to one vertex, so each wedge is summed by one task), each sum in
+    /// ascending corner order, so the result is the same whatever the thread count.
     fn quadrics(&mut self) {
-        // Wedge → triangles (CSR), so that each wedge gathers its own sum in parallel.
         let nw = self.wvert.len();
-        let mut offsets = vec![0u32; nw + 1];
-        for tri in &self.tris {
-            for &w in tri {
-                offsets[w as usize + 1] += 1;
-            }
-        }
-        for i in 0..nw {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut list = vec![0u32; self.tris.len() * 3];
-        {
-            let mut fill = offsets.clone();
-            for (t, tri) in self.tris.iter().enumerate() {
-                for &w in tri {
-                    list[fill[w as usize] as usize] = t as u32;
-                    fill[w as usize] += 1;
-                }
-            }
-        }
+        let mut wq = WedgeQuadrics::<M>::new(nw, self.has_normals);
+        let out = wq.raw_writer();
         let this = &*self;
-        let wq: Vec<AttrPart<M>> = (0..nw)
-            .into_par_iter()
-            .map(|w| {
-                let mut a = AttrPart::<M>::default();
-                for &t in &list[offsets[w] as usize..offsets[w + 1] as usize] {
-                    if let Some(q) = this.face_quadric(t as usize) {
-                        a.add(&q.split().1);
-                    }
-                }
-                a
-            })
-            .collect();
-        drop(list);
-        drop(offsets);
         let vred: Vec<Reduced> = (0..this.pos.len())
             .into_par_iter()
-            .map(|v| {
+            .map_init(Vec::<(u32, AttrPart<M>)>::new, |local, v| {
+                let out = &out;
+                local.clear();
                 let mut red = Reduced::default();
-                let mut seen: [u32; 8] = [NIL; 8];
                 let mut c = this.vfirst[v];
                 while c != NIL {
                     let (t, k) = (c as usize / 3, c as usize % 3);
-                    if let Some(q) = this.face_quadric(t) {
-                        red.add(&q.split().0);
-                    }
                     let w = this.tris[t][k];
-                    // Each wedge's Schur term once (a vertex rarely has more than 8 wedges;
-                    // beyond that a linear scan of the earlier corners decides).
-                    let first = match seen.iter().position(|&x| x == w || x == NIL) {
-                        Some(i) if seen[i] == w => false,
-                        Some(i) => {
-                            seen[i] = w;
-                            true
-                        }
+                    let i = match local.iter().position(|e| e.0 == w) {
+                        Some(i) => i,
                         None => {
-                            let mut e = this.vfirst[v];
-                            let mut earlier = false;
-                            while e != c {
-                                earlier |= this.tris[e as usize / 3][e as usize % 3] == w;
-                                e = this.cnext[e as usize];
-                            }
-                            !earlier
+                            local.push((w, AttrPart::default()));
+                            local.len() - 1
                         }
                     };
-                    if first {
-                        red.schur(&wq[w as usize], &this.w, -1.0);
+                    if let Some(q) = this.face_quadric(t) {
+                        let (geo, attr) = q.split();
+                        red.add(&geo);
+                        local[i].1.add(&attr);
                     }
                     c = this.cnext[c as usize];
+                }
+                for (w, a) in local.iter() {
+                    red.schur(a, &this.w, -1.0);
+                    // SAFETY: `wq` outlives this loop and nothing else touches it meanwhile.
+                    // Wedge `w` is reached only through the corners of its own vertex `v`
+                    // (the corner lists are built from `wvert`), and each vertex is one
+                    // task, so no two tasks write the same wedge.
+                    unsafe { out.set(*w as usize, a) };
                 }
                 red
             })
@@ -345,7 +355,7 @@ impl<'a, const M: usize> Work<'a, M> {
     fn face_quadric(&self, t: usize) -> Option<Quadric<M>> {
         let tri = self.tris[t];
         let p = tri.map(|w| self.pos[self.wvert[w as usize] as usize]);
-        let s = tri.map(|w| self.wattr[w as usize]);
+        let s = tri.map(|w| self.wattr.get(w as usize));
         Quadric::from_triangle(p, s, &self.w)
     }
 
@@ -357,10 +367,13 @@ impl<'a, const M: usize> Work<'a, M> {
     /// Vertex classes (see [`VClass`]) from each vertex's star, in parallel; adds the
     /// border planes of `boundary = "weighted"` to the border wedges.
     fn classify(&mut self) {
+        // The planes are boxed so that the common case (no planes: `keep` and `free`
+        // borders, interior vertices) costs one pointer per vertex.
+        type Planes = Option<Box<Vec<([f64; 3], [f64; 3], f64)>>>;
         struct Info {
             class: VClass,
             border: bool,
-            planes: Vec<([f64; 3], [f64; 3], f64)>,
+            planes: Planes,
         }
         let infos: Vec<Info> = (0..self.pos.len())
             .into_par_iter()
@@ -383,7 +396,7 @@ impl<'a, const M: usize> Work<'a, M> {
                         return Info {
                             class: VClass::Fixed,
                             border: false,
-                            planes: Vec::new(),
+                            planes: None,
                         };
                     }
                     link.clear();
@@ -476,7 +489,7 @@ impl<'a, const M: usize> Work<'a, M> {
                     Info {
                         class,
                         border: border_edges > 0 || shape == Some(LinkShape::Path),
-                        planes,
+                        planes: (!planes.is_empty()).then(|| Box::new(planes)),
                     }
                 },
             )
@@ -494,7 +507,7 @@ impl<'a, const M: usize> Work<'a, M> {
                 VClass::Seam => self.classes.seam += 1,
                 VClass::Fixed => self.classes.fixed += 1,
             }
-            for (n, point, weight) in info.planes {
+            for (n, point, weight) in info.planes.into_iter().flat_map(|p| *p) {
                 self.vred[v].add_plane(&Quadric::<M>::plane(n, point, weight));
             }
         }
@@ -749,13 +762,13 @@ impl<'a, const M: usize> Work<'a, M> {
             group.at[si] = w;
             group.rep = group.rep.min(w);
             group.size += 1;
-            group.q.add(&self.wq[w as usize]);
+            group.q.add(&self.wq.get(w as usize));
         }
         // Merged wedges: their separate Schur terms give way to the merged block's.
         if sc.groups.len() < sc.lw.len() {
             for l in 0..sc.lw.len() {
                 if sc.groups[sc.lw_group[l] as usize].size > 1 {
-                    red.schur(&self.wq[sc.lw[l] as usize], &self.w, 1.0);
+                    red.schur(&self.wq.get(sc.lw[l] as usize), &self.w, 1.0);
                 }
             }
             for g in &sc.groups {
@@ -808,9 +821,12 @@ impl<'a, const M: usize> Work<'a, M> {
                 // The anchor's wedge keeps its identity and its attributes.
                 Some(w) => {
                     g.rep = w;
-                    self.wattr[w as usize]
+                    self.wattr.get(w as usize)
                 }
-                None => g.q.attributes_at(p).unwrap_or(self.wattr[g.rep as usize]),
+                None => {
+                    g.q.attributes_at(p)
+                        .unwrap_or_else(|| self.wattr.get(g.rep as usize))
+                }
             };
             if anchored.is_some() {
                 cost += g.q.excess(p, &g.attr, &self.w);
@@ -901,16 +917,16 @@ impl<'a, const M: usize> Work<'a, M> {
             if dot(n0, n1) < self.cfg.cos_max_normal_change * l0 * l1 {
                 return Err(Refusal::Flip);
             }
-            let origin = self.onormal[t].map(f64::from);
+            let origin = oct_decode(self.onormal[t]);
             if dot(origin, n1) <= 0.0 {
                 return Err(Refusal::Flip);
             }
             if self.has_uv {
-                let a_old = self.wattr[tri[k] as usize];
+                let a_old = self.wattr.uv(tri[k] as usize);
                 let g = sc.group_of(tri[k]);
                 let a_new = g.attr;
-                let ux = self.wattr[wx as usize];
-                let uy = self.wattr[wy as usize];
+                let ux = self.wattr.uv(wx as usize);
+                let uy = self.wattr.uv(wy as usize);
                 let before = uv_area([a_old[0], a_old[1]], [ux[0], ux[1]], [uy[0], uy[1]]);
                 let after = uv_area([a_new[0], a_new[1]], [ux[0], ux[1]], [uy[0], uy[1]]);
                 if before != 0.0 && (after * before <= 0.0 || after.abs() < 1e-14) {
@@ -957,10 +973,10 @@ impl<'a, const M: usize> Work<'a, M> {
         self.vred[n as usize] = plan.red;
         for g in &sc.groups {
             let r = g.rep as usize;
-            self.wq[r] = g.q;
+            self.wq.set(r, &g.q);
             self.wvert[r] = n;
-            if self.wattr[r] != g.attr {
-                self.wattr[r] = g.attr;
+            if self.wattr.get(r) != g.attr {
+                self.wattr.set(r, &g.attr);
                 self.wchanged[r] = true;
             }
         }
@@ -989,7 +1005,7 @@ impl<'a, const M: usize> Work<'a, M> {
     pub fn estimate(&self, t: usize) -> f64 {
         let tri = self.tris[t];
         let p = self.tv[t].map(|v| self.pos[v as usize]);
-        let a = tri.map(|w| self.wattr[w as usize]);
+        let a = tri.map(|w| self.wattr.get(w as usize));
         let mut e = 0.0;
         for k in 0..3 {
             let mean = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
@@ -1006,7 +1022,14 @@ impl<'a, const M: usize> Work<'a, M> {
     /// materials; moved vertices mapped back from the unit box, unmoved ones bit-exact;
     /// changed attributes appended as new texture coordinates / normals (§10.15), normals
     /// renormalised (§10.12).
-    pub fn into_mesh(self) -> Mesh {
+    pub fn into_mesh(mut self) -> Mesh {
+        // What the output does not need goes first, so that the output is built in the
+        // memory they held (peak memory, issue #5).
+        self.wq = WedgeQuadrics::default();
+        self.vred = Vec::new();
+        self.cnext = Vec::new();
+        self.vfirst = Vec::new();
+        self.onormal = Vec::new();
         let input = self.input;
         let scale = 1.0 / self.inv_scale;
         let positions: Vec<DVec3> = (0..self.pos.len())
@@ -1030,7 +1053,7 @@ impl<'a, const M: usize> Work<'a, M> {
                     ..*orig
                 };
                 if self.wchanged[w] {
-                    let a = self.wattr[w];
+                    let a = self.wattr.get(w);
                     let mut k = 0;
                     if self.has_uv {
                         if orig.texcoord.is_some() {
