@@ -472,6 +472,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
     let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
         .map(|t| mesh.triangle_vertices(t))
         .collect();
+    let tangent = plan.tangential.then(|| tangent_planes(mesh, &nb, &input));
     let interior = surface::Interior {
         nb: &nb,
         movable: &movable,
@@ -480,6 +481,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         topo: &topo,
         references: &references,
         eps: plan.epsilon / scale,
+        tangent: tangent.as_deref(),
     };
     let (params, m) = match plan.schedule {
         Schedule::Thesis => (plan.surface, 1),
@@ -558,6 +560,31 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
 #[inline]
 pub(crate) fn positive(x: f64) -> bool {
     x > 0.0
+}
+
+/// Per vertex, its position and the unit normal of the surface around it: the
+/// area-weighted normals of the triangles around it and around its ring neighbours (two
+/// rings: one ring's normal tilts with the noise of the vertex itself). Zero normal where
+/// there is no area.
+fn tangent_planes(mesh: &Mesh, nb: &Neighbourhood, positions: &[DVec3]) -> Vec<(DVec3, DVec3)> {
+    let mut at_vertex = vec![DVec3::ZERO; positions.len()];
+    for t in 0..mesh.triangles.len() {
+        let [a, b, c] = mesh.triangle_vertices(t);
+        let n = (positions[b as usize] - positions[a as usize])
+            .cross(positions[c as usize] - positions[a as usize]);
+        for v in [a, b, c] {
+            at_vertex[v as usize] += n;
+        }
+    }
+    (0..positions.len())
+        .map(|v| {
+            let n = nb
+                .ring(v)
+                .iter()
+                .fold(at_vertex[v], |s, &j| s + at_vertex[j as usize]);
+            (positions[v], n.normalize_or_zero())
+        })
+        .collect()
 }
 
 /// Sum and max of the per-vertex distances.

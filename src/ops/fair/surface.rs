@@ -215,6 +215,24 @@ pub struct Interior<'a> {
     /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
     /// length: fairing.md pitfall 21, an absolute 1e-4 in 1/length would depend on units).
     pub eps: f64,
+    /// `relax`: each vertex's position at the start of the step and the unit normal of the
+    /// surface around it there; non-uniformity moves are kept on that tangent plane (see
+    /// [`super::Plan::tangential`]). `None` for `fair`.
+    pub tangent: Option<&'a [(DVec3, DVec3)]>,
+}
+
+impl Interior<'_> {
+    /// `c` moved back onto `v`'s tangent plane at the start of the step (relax only).
+    #[inline]
+    fn on_tangent_plane(&self, v: usize, c: DVec3) -> DVec3 {
+        match self.tangent {
+            Some(t) => {
+                let (o, n) = t[v];
+                c - n * (c - o).dot(n)
+            }
+            None => c,
+        }
+    }
 }
 
 /// The references of `v`'s fan triangles.
@@ -362,7 +380,7 @@ pub fn thesis_nonuniformity_sweep(
         gather(positions, it.nb.ring(v), &mut buf);
         gather_references(it, v, &mut rbuf);
         let a = positions[v];
-        let candidate = a + lambda_u * nonuniformity(a, &buf);
+        let candidate = it.on_tangent_plane(v, a + lambda_u * nonuniformity(a, &buf));
         let fan = Fan {
             ring: &buf,
             closed: true,
@@ -463,7 +481,7 @@ pub fn fast_nonuniformity_sweep(
             *out = a;
             if it.movable[v] {
                 gather(old, nb.ring(v), buf);
-                let c = a + lambda_u * nonuniformity(a, buf);
+                let c = it.on_tangent_plane(v, a + lambda_u * nonuniformity(a, buf));
                 if c.is_finite() {
                     *out = c;
                 }
