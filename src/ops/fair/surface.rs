@@ -783,13 +783,15 @@ mod tests {
     #[test]
     fn closest_point_on_a_triangle_by_region() {
         let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
-        let at = |x, y, z| closest_on_triangle(DVec3::new(x, y, z), a, b, c);
-        assert_eq!(at(0.2, 0.3, 1.0), DVec3::new(0.2, 0.3, 0.0)); // face
-        assert_eq!(at(-1.0, -1.0, 0.5), a); // vertex
-        assert_eq!(at(2.0, -0.5, 0.0), b);
-        assert_eq!(at(0.5, -1.0, 0.3), DVec3::new(0.5, 0.0, 0.0)); // edge ab
-        let p = at(1.0, 1.0, 0.0); // edge bc
-        assert!((p - DVec3::new(0.5, 0.5, 0.0)).length() < 1e-15);
+        let near = |(x, y, z), expected: DVec3| {
+            let p = closest_on_triangle(DVec3::new(x, y, z), a, b, c);
+            assert!((p - expected).length() < 1e-15, "{p} vs {expected}");
+        };
+        near((0.2, 0.3, 1.0), DVec3::new(0.2, 0.3, 0.0)); // face
+        near((-1.0, -1.0, 0.5), a); // vertex
+        near((2.0, -0.5, 0.0), b);
+        near((0.5, -1.0, 0.3), DVec3::new(0.5, 0.0, 0.0)); // edge ab
+        near((1.0, 1.0, 0.0), DVec3::new(0.5, 0.5, 0.0)); // edge bc
     }
 
     #[test]
