@@ -184,7 +184,7 @@ fn lambda_0_1_distorts_a_torus_the_defaults_do_not() {
     // Measured: noisy 0.044, λ = 0.01 → 0.019, λ = 0.1 → 0.032.
     assert!(e_001 < 0.5 * e_noisy, "{e_noisy} -> {e_001}");
     assert!(e_01 > 1.4 * e_001, "λ 0.1: {e_01}, λ 0.01: {e_001}");
-    // The defaults (1000 iterations) fair it best.
+    // The defaults (500 iterations) fair it best.
     let mut m = noisy.clone();
     fair::fair(&mut m, &FairParams::default());
     assert!(torus_error(&m, big, r) < e_001);
