@@ -29,32 +29,13 @@ pub struct FollowReport {
     pub max_shift: f64,
 }
 
-/// Chart of each triangle: triangles sharing an edge whose two ends have the same texture
-/// coordinates on both sides are in one chart.
+/// Chart of each triangle (`u32::MAX` without texture coordinates): triangles that share a
+/// texture coordinate (by index) are in one chart. Coordinates are deduplicated on load, so
+/// two triangles meeting at a point of the texture image are joined; across a seam the two
+/// sides have different coordinates and stay apart. Union-find over texture coordinate
+/// indices: 4 bytes per coordinate, no edge list.
 pub(crate) fn charts(mesh: &Mesh) -> Vec<u32> {
-    // Each triangle edge keyed by its vertices and their texture coordinate indices, ordered
-    // by vertex; equal keys = a chart-internal edge.
-    let mut keys: Vec<([u32; 4], u32)> = Vec::with_capacity(3 * mesh.triangles.len());
-    for (t, tri) in mesh.triangles.iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (
-                mesh.wedges[tri[k] as usize],
-                mesh.wedges[tri[(k + 1) % 3] as usize],
-            );
-            let (ta, tb) = (
-                a.texcoord.unwrap_or(u32::MAX),
-                b.texcoord.unwrap_or(u32::MAX),
-            );
-            let key = if a.vertex < b.vertex {
-                [a.vertex, b.vertex, ta, tb]
-            } else {
-                [b.vertex, a.vertex, tb, ta]
-            };
-            keys.push((key, t as u32));
-        }
-    }
-    keys.par_sort_unstable();
-    let mut parent: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+    let mut parent: Vec<u32> = (0..mesh.texcoords.len() as u32).collect();
     fn find(parent: &mut [u32], mut x: u32) -> u32 {
         while parent[x as usize] != x {
             parent[x as usize] = parent[parent[x as usize] as usize];
@@ -62,18 +43,23 @@ pub(crate) fn charts(mesh: &Mesh) -> Vec<u32> {
         }
         x
     }
-    for pair in keys.windows(2) {
-        if pair[0].0 == pair[1].0 {
-            let (a, b) = (find(&mut parent, pair[0].1), find(&mut parent, pair[1].1));
-            if a != b {
-                // The smaller root wins: the result does not depend on visiting order.
-                let (lo, hi) = (a.min(b), a.max(b));
-                parent[hi as usize] = lo;
+    let corner_texcoords = |t: usize| mesh.triangles[t].map(|w| mesh.wedges[w as usize].texcoord);
+    for t in 0..mesh.triangles.len() {
+        if let [Some(a), Some(b), Some(c)] = corner_texcoords(t) {
+            for (x, y) in [(a, b), (a, c)] {
+                let (rx, ry) = (find(&mut parent, x), find(&mut parent, y));
+                if rx != ry {
+                    // The smaller root wins: the result does not depend on visiting order.
+                    parent[rx.max(ry) as usize] = rx.min(ry);
+                }
             }
         }
     }
-    (0..mesh.triangles.len() as u32)
-        .map(|t| find(&mut parent, t))
+    (0..mesh.triangles.len())
+        .map(|t| match corner_texcoords(t) {
+            [Some(a), Some(_), Some(_)] => find(&mut parent, a),
+            _ => u32::MAX,
+        })
         .collect()
 }
 

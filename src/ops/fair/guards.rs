@@ -6,7 +6,7 @@
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use crate::mesh::{Mesh, Topology};
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 use serde::Serialize;
 
 /// Quality `4√3·area / Σ edge²` (1 for an equilateral triangle, 0 for a degenerate one)
@@ -24,12 +24,24 @@ const BORDER_TILT_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
 /// What a triangle may not turn away from during a step (see [`check_triangle`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Reference {
-    /// The surface around it at the start of the step (zero = unknown).
-    pub around: DVec3,
-    /// Its own normal at the start of the step.
-    pub own: DVec3,
+    /// The direction of the surface around it at the start of the step (zero = unknown).
+    /// Unit vectors in f32: only directions are compared, and one Reference per triangle
+    /// of a 400k-triangle scan is 11 MB instead of 22 MB in f64 (issue #8's memory budget).
+    pub around: Vec3,
+    /// Its own normal direction at the start of the step.
+    pub own: Vec3,
     /// It has a boundary vertex: [`BORDER_TILT_DEGREES`] from `own` at most.
     pub border: bool,
+}
+
+impl Reference {
+    pub fn new(around: DVec3, own: DVec3, border: bool) -> Self {
+        Reference {
+            around: around.normalize_or_zero().as_vec3(),
+            own: own.normalize_or_zero().as_vec3(),
+            border,
+        }
+    }
 }
 
 /// Why the vertices that stay fixed do.
@@ -137,9 +149,8 @@ pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) ->
     if within_cone(n_old, reference) && !within_cone(n_new, reference) {
         return MoveCheck::Flip;
     }
-    if reference.own.dot(n_new) < 0.0
-        || (reference.border && !within_border_cone(n_new, reference.own))
-    {
+    let own = reference.own.as_dvec3();
+    if own.dot(n_new) < 0.0 || (reference.border && !within_border_cone(n_new, own)) {
         return MoveCheck::Flip;
     }
     let q_new = quality_squared(n_new, new[0], new[1], new[2]);
@@ -152,7 +163,7 @@ pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) ->
 /// `n` faces the side of the surroundings (true when either is zero).
 #[inline]
 fn within_cone(n: DVec3, reference: Reference) -> bool {
-    n.dot(reference.around) >= 0.0
+    n.dot(reference.around.as_dvec3()) >= 0.0
 }
 
 /// `n` is within [`BORDER_TILT_DEGREES`] of `own` (true when either is zero).
@@ -291,11 +302,11 @@ pub fn triangle_references(
     (0..mesh.triangles.len())
         .map(|t| {
             let vs = mesh.triangle_vertices(t);
-            Reference {
-                around: vs.into_iter().map(|v| at_vertex[v as usize]).sum(),
-                own: normals[t],
-                border: vs.into_iter().any(&is_border),
-            }
+            Reference::new(
+                vs.into_iter().map(|v| at_vertex[v as usize]).sum(),
+                normals[t],
+                vs.into_iter().any(&is_border),
+            )
         })
         .collect()
 }
@@ -351,11 +362,7 @@ mod tests {
             let [a, b, c] = at(deg);
             (b - a).cross(c - a)
         };
-        let inner = |start: f64| Reference {
-            around: DVec3::Z,
-            own: own(start),
-            border: false,
-        };
+        let inner = |start: f64| Reference::new(DVec3::Z, own(start), false);
         assert_eq!(
             check_triangle(at(60.0), at(10.0), inner(60.0)),
             MoveCheck::Ok
