@@ -116,7 +116,7 @@ fn check_borders(rel: &str) {
     // from the surface around them) turned back, and, in the crumpled raw
     // reconstructions, a few triangles that relax turned by up to 45° and fair by up to
     // 90° more (20 of 36,000 on the Angel; none on james).
-    let folds = |t: usize| normals[t].dot(references[t].around) < 0.0;
+    let folds = |t: usize| normals[t].dot(references[t].around.as_dvec3()) < 0.0;
     let final_normals = guards::triangle_normals(&m, &m.positions);
     let turned: Vec<usize> = (0..normals.len())
         .filter(|&t| final_normals[t].dot(normals[t]) < 0.0)
