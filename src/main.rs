@@ -3,7 +3,7 @@
 use clap::{Parser, Subcommand};
 use scanmill::mesh::summary::MeshSummary;
 use scanmill::mesh::{LoadOptions, MeshError, io};
-use scanmill::process::{ProcessError, process_scan};
+use scanmill::process::{ProcessError, process_scan_with_texture};
 use scanmill::recipe::runner::Progress;
 use scanmill::recipe::{Recipe, RecipeError};
 use std::io::IsTerminal;
@@ -45,6 +45,10 @@ enum Command {
         /// Also write the processing report as JSON to this file.
         #[arg(long)]
         report: Option<PathBuf>,
+        /// The texture image of an OBJ that names no material library (OBJ only; ignored
+        /// with a warning when the OBJ has materials of its own).
+        #[arg(long)]
+        texture: Option<PathBuf>,
     },
     /// Load a scan and print what it is.
     Inspect {
@@ -150,6 +154,7 @@ fn run_process(
     recipe_path: &Path,
     out: &Path,
     report: Option<&Path>,
+    texture: Option<&Path>,
 ) -> Result<(), (u8, anyhow::Error)> {
     let recipe = Recipe::from_path(recipe_path).map_err(|e| {
         let code = match &e {
@@ -161,7 +166,8 @@ fn run_process(
         (code, e.into())
     })?;
     let progress = TerminalProgress::new();
-    let result = process_scan(input, &recipe, Some(recipe_path), out, &progress);
+    let result =
+        process_scan_with_texture(input, texture, &recipe, Some(recipe_path), out, &progress);
     progress.finish();
     let result = result.map_err(|e| {
         let code = match &e {
@@ -298,7 +304,8 @@ fn main() -> ExitCode {
             recipe,
             out,
             report,
-        } => run_process(input, recipe, out, report.as_deref()),
+            texture,
+        } => run_process(input, recipe, out, report.as_deref(), texture.as_deref()),
         Command::Inspect {
             file,
             json,

@@ -174,6 +174,20 @@ pub fn process_scan(
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<Report, ProcessError> {
+    process_scan_with_texture(input, None, recipe, recipe_path, out_dir, progress)
+}
+
+/// [`process_scan`] for an OBJ that names no material library (facefuns, some scanner
+/// exports): `texture` becomes its diffuse texture. Ignored, with a warning, when the OBJ
+/// declares materials of its own.
+pub fn process_scan_with_texture(
+    input: &Path,
+    texture: Option<&Path>,
+    recipe: &Recipe,
+    recipe_path: Option<&Path>,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<Report, ProcessError> {
     let total_start = Instant::now();
     let total_stages = recipe.steps.len() + 2 + usize::from(recipe.preview.enabled);
 
@@ -181,6 +195,7 @@ pub fn process_scan(
     let load_start = Instant::now();
     let options = LoadOptions {
         weld_tolerance: recipe.input.weld_tolerance,
+        texture_override: texture.map(Path::to_path_buf),
         ..LoadOptions::default()
     };
     let (mut mesh, load_report) = load(input, &options)?;

@@ -87,6 +87,51 @@ fn textured_obj_is_processed_with_its_texture_and_report() {
 }
 
 #[test]
+fn texture_given_for_an_obj_without_mtl() {
+    // facefuns_di3d_face has no MTL; SOURCES.md says to pair it with its PNG explicitly.
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let report = tmp.path().join("report.json");
+    let input = format!("{DATA}/textured/facefuns_di3d_face/example.obj");
+    let texture = format!("{DATA}/textured/facefuns_di3d_face/example.png");
+    let (code, _, stderr) = scanmill(&[
+        "process",
+        &input,
+        "--texture",
+        &texture,
+        "--recipe",
+        RECIPE,
+        "--out",
+        out.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    for name in ["example.obj", "example.mtl", "example.png"] {
+        assert!(out.join(name).is_file(), "{name}: {:?}", entries(&out));
+    }
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(report["metrics"]["texture"]["status"], "measured");
+
+    // A texture that is not there: a clear error, exit 65, nothing in --out.
+    let out = tmp.path().join("out2");
+    let (code, _, stderr) = scanmill(&[
+        "process",
+        &input,
+        "--texture",
+        "/nonexistent/face.png",
+        "--recipe",
+        RECIPE,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 65, "{stderr}");
+    assert!(stderr.contains("face.png"), "{stderr}");
+    assert!(entries(&out).is_empty());
+}
+
+#[test]
 fn ply_input_is_processed() {
     let tmp = tempfile::tempdir().unwrap();
     let input = Path::new(DATA).join("untextured/stanford_bunny/bun_zipper_res4.ply");
