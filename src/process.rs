@@ -148,24 +148,6 @@ pub fn preview_file_name(stem: &str) -> String {
     format!("{stem}.preview.png")
 }
 
-/// Renders the preview; a failure is logged and gives none (it must not fail the job).
-fn render_preview(
-    reference: &Mesh,
-    result: &Mesh,
-    recipe: &Recipe,
-) -> Option<crate::preview::Preview> {
-    match crate::preview::render(reference, result, &recipe.preview) {
-        Ok(p) => {
-            tracing::info!(ms = p.figures.render_ms, "preview drawn");
-            Some(p)
-        }
-        Err(e) => {
-            tracing::warn!(error = %e, "no preview");
-            None
-        }
-    }
-}
-
 /// Processes one scan. The result lands in `out_dir` only if everything succeeded.
 pub fn process_scan(
     input: &Path,
@@ -213,29 +195,18 @@ pub fn process_scan_with_texture(
     let input_counts = MeshCounts::of(&mesh);
     tracing::info!(input = %input.display(), faces = input_counts.faces, load_ms, "loaded");
 
-    // The steps, then the final metrics against the input (a clone of it is kept while the
-    // steps run, unless the recipe turns metrics off).
+    // The steps, then the final metrics against the input and the preview (a clone of the
+    // input is kept while the steps run, unless the recipe wants neither).
     let RunOutcome {
         steps,
         metrics,
-        reference,
+        preview,
     } = run_recipe(recipe, &mut mesh, progress, 1, total_stages).map_err(|source| {
         ProcessError::Step {
             input: input.to_path_buf(),
             source,
         }
     })?;
-
-    // The preview compares the result with the reference the metrics used (the input
-    // after the recipe's crop steps).
-    let preview = match (&reference, recipe.preview.enabled) {
-        (Some(reference), true) => {
-            progress.stage(total_stages - 2, total_stages, "preview");
-            render_preview(reference, &mesh, recipe)
-        }
-        _ => None,
-    };
-    drop(reference);
 
     progress.stage(total_stages - 1, total_stages, "write");
     let write_start = Instant::now();

@@ -40,6 +40,24 @@ fn relax_and_fair_keep_the_photo_on_the_face() {
 }
 
 #[test]
+fn relax_then_fair_carry_the_texture_once_from_the_scanned_surface() {
+    let (mut mesh, _) = load(Path::new(JAMES), &LoadOptions::default()).unwrap();
+    let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"relax\"\n[[step]]\nkind = \"fair\"\n[[step]]\nkind = \"normals\"\n";
+    let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
+    let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
+    // One read-back, after the last vertex-moving step of the run.
+    assert!(out.steps[0].figures.get("texture_follow").is_none());
+    let follow = &out.steps[1].figures["texture_follow"];
+    assert!(follow["corners"].as_u64().unwrap() > 6000, "{follow}");
+    assert!(out.steps[2].figures.get("texture_follow").is_none());
+    let deviation = out.metrics["texture"]["mean"].as_f64().unwrap();
+    assert!(
+        deviation < 2.0,
+        "relax + fair: texture deviation {deviation}"
+    );
+}
+
+#[test]
 fn seam_fix_cuts_no_seams_into_a_seamless_face() {
     // facefuns has one texture chart and no seams. The thesis' per-triangle repair gave
     // its decimation 12,763 seam edges; corners inside one chart are now fixed in place.

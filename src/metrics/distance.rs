@@ -131,6 +131,12 @@ pub fn surface_distance(
 pub fn vertex_distances(mesh: &Mesh, reference: &Mesh) -> Result<Vec<f64>, MetricsError> {
     super::surface::check_measurable(mesh, "result")?;
     let index = SurfaceIndex::new(reference, "reference")?;
+    Ok(vertex_distances_with(mesh, &index))
+}
+
+/// [`vertex_distances`] with the reference's index already built.
+pub fn vertex_distances_with(mesh: &Mesh, index: &SurfaceIndex<'_>) -> Vec<f64> {
+    let reference = index.mesh();
     let near = super::surface::counterparts(mesh, reference).map(|by_triangle| {
         let mut near = vec![u32::MAX; mesh.positions.len()];
         for (t, &hint) in by_triangle.iter().enumerate() {
@@ -143,15 +149,14 @@ pub fn vertex_distances(mesh: &Mesh, reference: &Mesh) -> Result<Vec<f64>, Metri
         near
     });
     use rayon::prelude::*;
-    Ok(mesh
-        .positions
+    mesh.positions
         .par_iter()
         .enumerate()
         .map(|(v, &p)| match near.as_ref().map(|n| n[v]) {
             Some(t) if t != u32::MAX => index.closest_near(p, t as usize).distance,
             _ => index.closest(p).distance,
         })
-        .collect())
+        .collect()
 }
 
 /// Area-weighted outward vertex normals (zero for vertices without area around them).

@@ -110,17 +110,81 @@ pub fn compare_with_cache(
     options: &MetricsOptions,
     cache: &mut TextureCache,
 ) -> Result<FinalMetrics, MetricsError> {
+    let prepared = PreparedReference::new(reference, options)?;
+    compare_prepared(result, &prepared, cache)
+}
+
+/// What the metrics need of the reference alone and is costly: its closest-point index and
+/// its surface samples. Preparing it does not need the
+/// result, so the recipe runner does it on a thread of its own while the decimation's
+/// sequential collapse loop leaves a core idle, and the preview reuses its index.
+pub struct PreparedReference<'a> {
+    options: MetricsOptions,
+    index: surface::SurfaceIndex<'a>,
+    samples: Vec<surface::SurfacePoint>,
+    prepare_ms: f64,
+}
+
+impl<'a> PreparedReference<'a> {
+    pub fn new(reference: &'a Mesh, options: &MetricsOptions) -> Result<Self, MetricsError> {
+        let start = Instant::now();
+        // The reference's topology is not prepared here but beside the result's in
+        // [`compare_prepared`]: its full form is ~40 MB for a 400k-triangle scan, and the
+        // preparation runs beside the decimation, which is the memory peak of the face-scan
+        // recipe (issue #8's budget).
+        let index = surface::SurfaceIndex::new(reference, "reference")?;
+        let samples = surface::sample_surface(
+            reference,
+            options.samples,
+            distance::reference_seed(options.seed),
+        );
+        Ok(PreparedReference {
+            options: *options,
+            index,
+            samples,
+            prepare_ms: start.elapsed().as_secs_f64() * 1e3,
+        })
+    }
+
+    pub fn mesh(&self) -> &'a Mesh {
+        self.index.mesh()
+    }
+
+    /// The closest-point index over the reference's surface.
+    pub fn index(&self) -> &surface::SurfaceIndex<'a> {
+        &self.index
+    }
+}
+
+/// All metrics of `result` against a prepared reference. `wall_ms` counts the preparation
+/// too, though it may have run beside other work.
+pub fn compare_prepared(
+    result: &Mesh,
+    prepared: &PreparedReference<'_>,
+    cache: &mut TextureCache,
+) -> Result<FinalMetrics, MetricsError> {
     let start = Instant::now();
-    // The combinatorial metrics first, then the sample-based ones (each parallel inside):
-    // one after the other rather than side by side, because the reference's topology and
-    // its closest-point index are the two big allocations here and a 400k-triangle input
-    // must not hold both at once (issue #8's memory budget).
+    let reference = prepared.mesh();
+    let options = &prepared.options;
+    // The combinatorial metrics first, then the sample-based ones (each parallel inside).
     let (topology, vertex_deviation) = rayon::join(
         || topology::compare(result, reference, options.crack_distance_factor),
         || distance::vertex_deviation(result, reference),
     );
-    let sampled = sampled_metrics(result, reference, options, cache);
-    let (distance, normals, texture) = sampled?;
+    let result_index = surface::SurfaceIndex::new(result, "result")?;
+    let on_result = surface::sample_surface(result, options.samples, options.seed);
+    let to_reference = surface::counterparts(result, reference);
+    let forward = prepared
+        .index
+        .closest_to_samples(&on_result, to_reference.as_deref());
+    let backward = result_index.closest_to_samples(
+        &prepared.samples,
+        surface::counterparts(reference, result).as_deref(),
+    );
+    drop(result_index);
+    let distance = distance::from_queries(&forward, &backward, reference, options.seed);
+    let normals = normals::angular_deviation_with(result, &prepared.index, to_reference.as_deref());
+    let texture = texture::deviation_with(result, reference, &on_result, &forward, cache);
     let volume = volume::change(
         volume::volume_from_counts(result, &topology.after.counts),
         volume::volume_from_counts(reference, &topology.before.counts),
@@ -132,44 +196,10 @@ pub fn compare_with_cache(
         normals,
         texture,
         topology,
-        wall_ms: start.elapsed().as_secs_f64() * 1e3,
+        wall_ms: prepared.prepare_ms + start.elapsed().as_secs_f64() * 1e3,
     };
     tracing::debug!(wall_ms = metrics.wall_ms, "metrics computed");
     Ok(metrics)
-}
-
-/// Surface distance, angular deviation and texture deviation: the metrics that need the
-/// closest-point index.
-fn sampled_metrics(
-    result: &Mesh,
-    reference: &Mesh,
-    options: &MetricsOptions,
-    cache: &mut TextureCache,
-) -> Result<(SurfaceDistance, AngularDeviation, TextureDeviation), MetricsError> {
-    let (reference_index, result_index) = rayon::join(
-        || surface::SurfaceIndex::new(reference, "reference"),
-        || surface::SurfaceIndex::new(result, "result"),
-    );
-    let (reference_index, result_index) = (reference_index?, result_index?);
-    let on_result = surface::sample_surface(result, options.samples, options.seed);
-    let on_reference = surface::sample_surface(
-        reference,
-        options.samples,
-        distance::reference_seed(options.seed),
-    );
-    let to_reference = surface::counterparts(result, reference);
-    let forward = reference_index.closest_to_samples(&on_result, to_reference.as_deref());
-    let backward = result_index.closest_to_samples(
-        &on_reference,
-        surface::counterparts(reference, result).as_deref(),
-    );
-    drop(result_index);
-    let distance = distance::from_queries(&forward, &backward, reference, options.seed);
-    let normals =
-        normals::angular_deviation_with(result, &reference_index, to_reference.as_deref());
-    drop(reference_index);
-    let texture = texture::deviation_with(result, reference, &on_result, &forward, cache);
-    Ok((distance, normals, texture))
 }
 
 /// Whether the two meshes have the same vertices (by index) and the same triangles over

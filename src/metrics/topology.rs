@@ -62,52 +62,80 @@ fn boundary_segments(mesh: &Mesh, topology: &Topology) -> Vec<[DVec3; 2]> {
         .collect()
 }
 
-/// Counts result boundary edges farther than `radius` from every reference boundary edge.
-fn count_cracks(
-    result_boundary: &[[DVec3; 2]],
-    reference_boundary: &[[DVec3; 2]],
-    radius: f64,
-) -> usize {
-    if result_boundary.is_empty() {
-        return 0;
+/// The reference's half of [`compare`], prepared once: its counts and an index over its
+/// boundary edges. Keeping only these lets the reference's full topology go before the
+/// closest-point index is built (issue #8's memory budget).
+pub struct ReferenceTopology {
+    pub snapshot: TopologySnapshot,
+    /// The reference's boundary edges as a polyline (`None`: a closed reference).
+    boundary: Option<Polyline>,
+    /// Result boundary edges farther than this from `boundary` are cracks (model units).
+    crack_distance: f64,
+}
+
+impl ReferenceTopology {
+    pub fn of(reference: &Mesh, crack_distance_factor: f64) -> Self {
+        let (snapshot, topology) = TopologySnapshot::of(reference);
+        let segments = boundary_segments(reference, &topology);
+        drop(topology);
+        let boundary = (!segments.is_empty()).then(|| {
+            let vertices: Vec<PVector> = segments
+                .iter()
+                .flatten()
+                .map(|p| PVector::new(p.x, p.y, p.z))
+                .collect();
+            let indices: Vec<[u32; 2]> = (0..segments.len() as u32)
+                .map(|i| [2 * i, 2 * i + 1])
+                .collect();
+            Polyline::new(vertices, Some(indices))
+        });
+        ReferenceTopology {
+            snapshot,
+            boundary,
+            crack_distance: crack_distance_factor * reference.mean_edge_length(),
+        }
     }
-    if reference_boundary.is_empty() {
+}
+
+/// Counts result boundary edges farther than the crack distance from every reference
+/// boundary edge.
+fn count_cracks(result_boundary: &[[DVec3; 2]], reference: &ReferenceTopology) -> usize {
+    let Some(polyline) = &reference.boundary else {
         return result_boundary.len();
-    }
-    let vertices: Vec<PVector> = reference_boundary
-        .iter()
-        .flatten()
-        .map(|p| PVector::new(p.x, p.y, p.z))
-        .collect();
-    let indices: Vec<[u32; 2]> = (0..reference_boundary.len() as u32)
-        .map(|i| [2 * i, 2 * i + 1])
-        .collect();
-    let polyline = Polyline::new(vertices, Some(indices));
+    };
     result_boundary
         .par_iter()
         .filter(|[a, b]| {
             let m = (*a + *b) * 0.5;
-            polyline.distance_to_local_point(PVector::new(m.x, m.y, m.z), true) > radius
+            polyline.distance_to_local_point(PVector::new(m.x, m.y, m.z), true)
+                > reference.crack_distance
         })
         .count()
 }
 
-pub fn compare(result: &Mesh, reference: &Mesh, crack_distance_factor: f64) -> TopologyComparison {
-    let ((before, reference_topology), (after, result_topology)) = rayon::join(
-        || TopologySnapshot::of(reference),
-        || TopologySnapshot::of(result),
-    );
-    let crack_distance = crack_distance_factor * reference.mean_edge_length();
-    let cracks = count_cracks(
-        &boundary_segments(result, &result_topology),
-        &boundary_segments(reference, &reference_topology),
-        crack_distance,
-    );
+/// The topology of `result` against a prepared reference.
+pub fn compare_with(result: &Mesh, reference: &ReferenceTopology) -> TopologyComparison {
+    let (after, result_topology) = TopologySnapshot::of(result);
+    let cracks = count_cracks(&boundary_segments(result, &result_topology), reference);
     TopologyComparison {
-        before,
+        before: reference.snapshot,
         after,
         cracks,
-        crack_distance,
+        crack_distance: reference.crack_distance,
+    }
+}
+
+pub fn compare(result: &Mesh, reference: &Mesh, crack_distance_factor: f64) -> TopologyComparison {
+    let (reference, (after, result_topology)) = rayon::join(
+        || ReferenceTopology::of(reference, crack_distance_factor),
+        || TopologySnapshot::of(result),
+    );
+    let cracks = count_cracks(&boundary_segments(result, &result_topology), &reference);
+    TopologyComparison {
+        before: reference.snapshot,
+        after,
+        cracks,
+        crack_distance: reference.crack_distance,
     }
 }
 

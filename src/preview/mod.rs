@@ -18,6 +18,7 @@ pub mod shade;
 
 use crate::mesh::Mesh;
 use crate::metrics::MetricsError;
+use crate::metrics::surface::SurfaceIndex;
 use crate::metrics::texture::TextureCache;
 use camera::{Axis, Camera, Viewport};
 use glam::DVec3;
@@ -158,6 +159,25 @@ pub fn render(
     result: &Mesh,
     options: &PreviewOptions,
 ) -> Result<Preview, PreviewError> {
+    render_with(input, None, result, options)
+}
+
+/// [`render`] with a closest-point index over `input` already built (the metrics' one):
+/// the distance panel then needs no index of its own.
+pub fn render_with_index(
+    input_index: &SurfaceIndex<'_>,
+    result: &Mesh,
+    options: &PreviewOptions,
+) -> Result<Preview, PreviewError> {
+    render_with(input_index.mesh(), Some(input_index), result, options)
+}
+
+fn render_with(
+    input: &Mesh,
+    input_index: Option<&SurfaceIndex<'_>>,
+    result: &Mesh,
+    options: &PreviewOptions,
+) -> Result<Preview, PreviewError> {
     let start = Instant::now();
     options.validate().map_err(PreviewError::Options)?;
     if input.triangles.is_empty() {
@@ -177,7 +197,13 @@ pub fn render(
     )
     .ok_or(PreviewError::Empty("no finite vertex to frame"))?;
 
-    let distances = crate::metrics::distance::vertex_distances(result, input)?;
+    let distances = match input_index {
+        Some(index) => {
+            crate::metrics::surface::check_measurable(result, "result")?;
+            crate::metrics::distance::vertex_distances_with(result, index)
+        }
+        None => crate::metrics::distance::vertex_distances(result, input)?,
+    };
     let diagonal = input.bounding_box_diagonal();
     let percent = |d: f64| {
         if diagonal > 0.0 {

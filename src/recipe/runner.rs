@@ -2,11 +2,12 @@
 
 use super::{Recipe, Step};
 use crate::mesh::Mesh;
-use crate::metrics::{self, MetricsOptions};
+use crate::metrics::{self, MetricsOptions, PreparedReference, TextureCache};
 use crate::ops;
+use crate::preview::{self, Preview};
 use crate::report::StepReport;
 use serde_json::Value;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 /// Receives progress while a scan is processed. The command line draws a progress bar with
@@ -35,7 +36,13 @@ fn figures<T: serde::Serialize>(value: T) -> serde_json::Value {
 
 /// Applies one step to the mesh and returns its figures. `input` is the mesh `seam_fix`
 /// projects onto (see [`run_steps_observed`]), kept only when a step needs it.
-fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_json::Value, String> {
+/// A step that replaces the mesh (`decimate`) leaves the old one in `replaced`.
+fn apply(
+    step: &Step,
+    mesh: &mut Mesh,
+    input: Option<&Mesh>,
+    replaced: &mut Option<Mesh>,
+) -> Result<serde_json::Value, String> {
     match step {
         Step::Normals(p) => Ok(figures(ops::normals::recompute_normals(mesh, p))),
         Step::Crop(p) => ops::crop::crop(mesh, p)
@@ -43,38 +50,23 @@ fn apply(step: &Step, mesh: &mut Mesh, input: Option<&Mesh>) -> Result<serde_jso
             .map_err(|e| e.to_string()),
         Step::Decimate(p) => {
             let (out, report) = ops::decimate::decimate(mesh, p).map_err(|e| e.to_string())?;
-            *mesh = out;
+            *replaced = Some(std::mem::replace(mesh, out));
             Ok(figures(report))
         }
         Step::SeamFix(p) => {
             let input = input.ok_or("seam_fix needs the loaded input mesh")?;
             Ok(figures(ops::seam_fix::seam_fix(mesh, input, p)))
         }
-        Step::Relax(p) => Ok(with_texture_follow(mesh, |m| {
-            figures(ops::fair::relax(m, p))
-        })),
-        Step::Fair(p) => Ok(with_texture_follow(mesh, |m| {
-            figures(ops::fair::fair(m, p))
-        })),
-        Step::Smooth(p) => Ok(with_texture_follow(mesh, |m| {
-            figures(ops::smooth::smooth(m, p))
-        })),
+        Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
+        Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
+        Step::Smooth(p) => Ok(figures(ops::smooth::smooth(mesh, p))),
     }
 }
 
-/// Runs a step that only moves vertices, then carries the texture along the surface
-/// (`ops::texture_follow`); its figures go into the step's figures as `texture_follow`.
-fn with_texture_follow(
-    mesh: &mut Mesh,
-    step: impl FnOnce(&mut Mesh) -> serde_json::Value,
-) -> serde_json::Value {
-    let before = mesh.has_texcoords().then(|| mesh.positions.clone());
-    let mut value = step(mesh);
-    if let (Some(before), Value::Object(map)) = (before, &mut value) {
-        let report = ops::texture_follow::follow(mesh, before);
-        map.insert("texture_follow".into(), figures(report));
-    }
-    value
+/// Whether a step only moves vertices (same wedges, texture coordinates and triangles), so
+/// that the texture must be carried along the surface after it (`ops::texture_follow`).
+fn moves_vertices(step: &Step) -> bool {
+    matches!(step, Step::Relax(_) | Step::Fair(_) | Step::Smooth(_))
 }
 
 /// Metrics of `result` against `reference` as report JSON; a failure (which only a bug in a
@@ -89,27 +81,35 @@ pub fn metrics_value(result: &Mesh, reference: &Mesh, options: &MetricsOptions) 
     }
 }
 
-/// The steps' reports and the final metrics.
-#[derive(Debug, Clone)]
+/// The steps' reports, the final metrics and the preview.
 pub struct RunOutcome {
     pub steps: Vec<StepReport>,
     /// `metrics::FinalMetrics` of the result against the input as JSON (the input as the
     /// recipe's crop steps left it, see [`run_recipe`]), or `Null` when the recipe turns
     /// metrics off.
     pub metrics: Value,
-    /// The reference the metrics measured against (the input, after the recipe's crop
-    /// steps), kept for the preview; `None` when the recipe wants neither.
-    pub reference: Option<Arc<Mesh>>,
+    /// The picture of input, result and distance (`None` when the recipe turns it off or
+    /// it could not be drawn, which is logged and does not fail the run).
+    pub preview: Option<Preview>,
 }
 
 /// Runs the steps and, unless the recipe's `[metrics]` say otherwise, measures the result
-/// against the input (which is kept and returned if the metrics or the preview want it).
+/// against the input and draws the preview (the input is kept while the steps run if
+/// either wants it). `progress` gets one more stage after the steps, "preview", when the
+/// recipe draws one.
 ///
 /// The reference is the input *after the recipe's crop steps* (the input itself when there
 /// are none): a crop removes surface on purpose, and measuring it would drown what the
 /// other steps did in the distance to the cropped-away parts and count the new border as
 /// cracks. The thesis compares its decimations with the cropped scans too
 /// (spec/decimation.md §8.1). `metrics.reference` in the JSON says which it was.
+///
+/// What the metrics need of the reference alone (its topology, closest-point index and
+/// samples, [`PreparedReference`]) is prepared on a thread of its own from the start of
+/// the first decimation after the last crop: the decimation's collapse loop is sequential
+/// and leaves the other core idle (400k-triangle face: about 0.4 s of the whole run's wall
+/// time hidden this way). It starts no earlier so that it does not add to the memory peak
+/// of `relax` and `fair`.
 pub fn run_recipe(
     recipe: &Recipe,
     mesh: &mut Mesh,
@@ -122,45 +122,112 @@ pub fn run_recipe(
         return Ok(RunOutcome {
             steps,
             metrics: Value::Null,
-            reference: None,
+            preview: None,
         });
     }
     // One copy of the input serves both the final metrics and `seam_fix` (a 400k-triangle
     // scan's copy is ~30 MB); after a crop the metrics' reference becomes the cropped mesh.
     let input = Arc::new(mesh.clone());
-    let mut reference = Arc::clone(&input);
-    let mut cropped = false;
-    let steps = run_steps_observed(
-        recipe,
-        mesh,
-        progress,
-        first_stage,
-        total_stages,
-        needs_input(recipe).then_some(input),
-        &mut |step, after| {
-            if matches!(step, Step::Crop(_)) {
-                reference = Arc::new(after.clone());
-                cropped = true;
-            }
-        },
-    )?;
-    if !recipe.metrics.enabled {
-        return Ok(RunOutcome {
-            steps,
-            metrics: Value::Null,
-            reference: Some(reference),
+    let options = recipe.metrics.options();
+    // The reference the early preparation measures; it must outlive the thread scope.
+    let early_reference: OnceLock<Arc<Mesh>> = OnceLock::new();
+    std::thread::scope(|scope| {
+        let mut reference = Arc::clone(&input);
+        let mut cropped = false;
+        let mut preparing = None;
+        let steps = run_steps_observed(
+            recipe,
+            mesh,
+            progress,
+            first_stage,
+            total_stages,
+            needs_input(recipe).then_some(input),
+            &mut |i, when, step, current| match (when, step) {
+                (When::After, Step::Crop(_)) => {
+                    reference = Arc::new(current.clone());
+                    cropped = true;
+                }
+                (When::Before, Step::Decimate(_))
+                    if recipe.metrics.enabled
+                        && preparing.is_none()
+                        && !recipe.steps[i..].iter().any(|s| matches!(s, Step::Crop(_))) =>
+                {
+                    let reference = early_reference.get_or_init(|| Arc::clone(&reference));
+                    preparing = Some(scope.spawn(move || prepare_beside(reference, &options)));
+                }
+                _ => {}
+            },
+        )?;
+        let reference = early_reference.get().unwrap_or(&reference);
+        let prepared = recipe.metrics.enabled.then(|| match preparing {
+            Some(thread) => thread
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+            None => PreparedReference::new(reference, &options),
         });
-    }
-    let mut metrics = metrics_value(mesh, &reference, &recipe.metrics.options());
-    if let Value::Object(map) = &mut metrics {
-        let which = if cropped { "input-after-crop" } else { "input" };
-        map.insert("reference".into(), Value::from(which));
-    }
-    Ok(RunOutcome {
-        steps,
-        metrics,
-        reference: Some(reference),
+        let metrics = match &prepared {
+            None => Value::Null,
+            Some(Err(e)) => metrics_error(e),
+            Some(Ok(prepared)) => {
+                match metrics::compare_prepared(mesh, prepared, &mut TextureCache::new()) {
+                    Ok(m) => {
+                        let mut value = serde_json::to_value(m).expect("metrics always serialise");
+                        if let Value::Object(map) = &mut value {
+                            let which = if cropped { "input-after-crop" } else { "input" };
+                            map.insert("reference".into(), Value::from(which));
+                        }
+                        value
+                    }
+                    Err(e) => metrics_error(&e),
+                }
+            }
+        };
+        let preview = recipe.preview.enabled.then(|| {
+            progress.stage(first_stage + recipe.steps.len(), total_stages, "preview");
+            let drawn = match &prepared {
+                Some(Ok(prepared)) => {
+                    preview::render_with_index(prepared.index(), mesh, &recipe.preview)
+                }
+                _ => preview::render(reference, mesh, &recipe.preview),
+            };
+            drawn
+                .inspect(|p| tracing::info!(ms = p.figures.render_ms, "preview drawn"))
+                .inspect_err(|e| tracing::warn!(error = %e, "no preview"))
+                .ok()
+        });
+        Ok(RunOutcome {
+            steps,
+            metrics,
+            preview: preview.flatten(),
+        })
     })
+}
+
+/// Prepares the reference's half of the metrics on fewer threads than the machine has:
+/// it runs beside the decimation, whose sequential loop keeps one core busy.
+fn prepare_beside<'a>(
+    reference: &'a Mesh,
+    options: &MetricsOptions,
+) -> Result<PreparedReference<'a>, metrics::MetricsError> {
+    let threads = rayon::current_num_threads().saturating_sub(1).max(1);
+    match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
+        Ok(pool) => pool.install(|| PreparedReference::new(reference, options)),
+        Err(_) => PreparedReference::new(reference, options),
+    }
+}
+
+/// A metrics failure (which only a bug in a step can cause: an empty or non-finite mesh)
+/// is recorded in the report, not raised.
+fn metrics_error(e: &metrics::MetricsError) -> Value {
+    tracing::warn!(error = %e, "metrics not computed");
+    serde_json::json!({ "error": e.to_string() })
+}
+
+/// When an observer of the steps is called: before a step runs, or after it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum When {
+    Before,
+    After,
 }
 
 /// Runs every step of `recipe` on `mesh`. `first_stage`/`total_stages` place the steps
@@ -180,7 +247,7 @@ pub fn run_steps(
         first_stage,
         total_stages,
         input,
-        &mut |_, _| {},
+        &mut |_, _, _, _| {},
     )
 }
 
@@ -189,7 +256,7 @@ fn needs_input(recipe: &Recipe) -> bool {
     recipe.steps.iter().any(|s| matches!(s, Step::SeamFix(_)))
 }
 
-/// [`run_steps`], calling `after_step` with each step and the mesh it left.
+/// [`run_steps`], calling `observe` with each step's index and the mesh before and after it.
 fn run_steps_observed(
     recipe: &Recipe,
     mesh: &mut Mesh,
@@ -197,7 +264,7 @@ fn run_steps_observed(
     first_stage: usize,
     total_stages: usize,
     input: Option<Arc<Mesh>>,
-    after_step: &mut dyn FnMut(&Step, &Mesh),
+    observe: &mut dyn FnMut(usize, When, &Step, &Mesh),
 ) -> Result<Vec<StepReport>, StepError> {
     let mut reports = Vec::with_capacity(recipe.steps.len());
     // `seam_fix` projects onto the mesh as it was just before the decimation (positions
@@ -208,28 +275,54 @@ fn run_steps_observed(
     // through the snapshot's own origins when a crop changed its triangles.
     let mut seam_reference = input;
     let mut changed = false;
+    // The texture is carried along the surface once per run of vertex-moving steps
+    // (relax, fair, smooth): from the surface before the first to the positions after the
+    // last. One read-back instead of one per step halves its cost (a closest-point index
+    // over the whole scan and a query per corner) and projects onto the surface as it was
+    // scanned rather than onto an intermediate one. It is done early when a step asks for
+    // its own metrics, so that those see the texture where it belongs.
+    let mut follow_from: Option<Vec<glam::DVec3>> = None;
     for (i, step) in recipe.steps.iter().enumerate() {
-        if changed && seam_reference.is_some() && matches!(step, Step::Decimate(_)) {
-            seam_reference = Some(Arc::new(mesh.clone()));
-        }
+        observe(i, When::Before, step, mesh);
         let before = recipe.step_metrics.contains(&(i + 1)).then(|| mesh.clone());
         progress.stage(first_stage + i, total_stages, step.kind());
         let (vertices_before, faces_before) = (mesh.positions.len(), mesh.triangles.len());
         let start = Instant::now();
         let span = tracing::info_span!("step", index = i + 1, kind = step.kind());
         let _guard = span.enter();
-        let figures =
-            apply(step, mesh, seam_reference.as_deref()).map_err(|message| StepError {
-                index: i + 1,
-                kind: step.kind(),
-                message,
+        if moves_vertices(step) && follow_from.is_none() && mesh.has_texcoords() {
+            follow_from = Some(mesh.positions.clone());
+        }
+        let mut replaced = None;
+        let mut figures =
+            apply(step, mesh, seam_reference.as_deref(), &mut replaced).map_err(|message| {
+                StepError {
+                    index: i + 1,
+                    kind: step.kind(),
+                    message,
+                }
             })?;
+        // The mesh the decimation started from becomes the snapshot (no copy of it is
+        // made: the decimator needed it whole until its output was built anyway).
+        if let Some(old) = replaced
+            && changed
+            && seam_reference.is_some()
+        {
+            seam_reference = Some(Arc::new(old));
+        }
+        let run_goes_on = recipe.steps.get(i + 1).is_some_and(moves_vertices);
+        if !run_goes_on || before.is_some() {
+            if let (Some(from), Value::Object(map)) = (follow_from.take(), &mut figures) {
+                let report = ops::texture_follow::follow(mesh, from);
+                map.insert("texture_follow".into(), self::figures(report));
+            }
+        }
         debug_assert!(mesh.check_invariants().is_ok(), "{}", step.kind());
         changed = true;
         let wall_ms = start.elapsed().as_secs_f64() * 1e3;
         tracing::debug!(wall_ms, faces = mesh.triangles.len(), "step done");
         let metrics = before.map(|b| metrics_value(mesh, &b, &recipe.metrics.options()));
-        after_step(step, mesh);
+        observe(i, When::After, step, mesh);
         crate::memory::release_freed();
         reports.push(StepReport {
             kind: step.kind().to_string(),
@@ -279,15 +372,13 @@ mod tests {
         let mut mesh = uv_sphere(1.0, 6, 8);
         let out = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
         assert!(out.metrics.is_null());
-        // Kept for the preview: the input before the steps (normals moved nothing).
-        let reference = out.reference.expect("kept for the preview");
-        assert_eq!(reference.positions, mesh.positions);
-        assert!(reference.normals.is_empty() && !mesh.normals.is_empty());
+        // Drawn though the metrics are off.
+        assert!(out.preview.is_some());
         let r = recipe("[metrics]\nenabled = false\n[preview]\nenabled = false\n");
         assert!(
             run_recipe(&r, &mut mesh, &NoProgress, 0, 1)
                 .unwrap()
-                .reference
+                .preview
                 .is_none()
         );
         let r = recipe("[[step]]\nkind = \"crop\"\nmin = [5, 5, 5]\nmax = [6, 6, 6]\n");

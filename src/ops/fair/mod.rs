@@ -474,6 +474,10 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
             .count();
     }
 
+    // The mesh's full topology is not needed past this point; the neighbourhood has
+    // what the sweeps use. A 400k-triangle scan's is ~40 MB (issue #8's memory budget).
+    drop(topo);
+
     // S: the interior, boundary held still (§4.4).
     let movable: Vec<bool> = (0..n).map(|v| nb.is_closed(v) && !fixed[v]).collect();
     let movable_count = movable.iter().filter(|&&m| m).count();
@@ -486,7 +490,6 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         movable: &movable,
         movable_count,
         triangles: &triangles,
-        topo: &topo,
         references: &references,
         eps: plan.epsilon / scale,
         input: plan.tangential.then_some(&input[..]),

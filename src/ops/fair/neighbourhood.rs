@@ -10,6 +10,9 @@
 use crate::mesh::Topology;
 use rayon::prelude::*;
 
+/// Vertices per block when building (see [`Neighbourhood::new`]).
+const BLOCK: usize = 4096;
+
 #[derive(Debug, Clone, Default)]
 pub struct Neighbourhood {
     /// CSR offsets into `ring`, one row per vertex (empty for vertices without a ring).
@@ -31,52 +34,92 @@ pub struct Neighbourhood {
 impl Neighbourhood {
     pub fn new(topo: &Topology) -> Self {
         let n = topo.vertex_count();
-        let rings: Vec<Option<crate::mesh::OrderedRing>> = (0..n as u32)
-            .into_par_iter()
-            .map(|v| topo.ordered_ring(v))
-            .collect();
-        let mut offsets = Vec::with_capacity(n + 1);
-        offsets.push(0u32);
-        let mut fan_offsets = offsets.clone();
-        let mut ring = Vec::new();
-        let mut fan = Vec::new();
-        let mut closed = vec![false; n];
-        let mut manifold = vec![false; n];
-        for (v, r) in rings.into_iter().enumerate() {
-            if let Some(r) = r {
-                ring.extend_from_slice(&r.vertices);
-                fan.extend_from_slice(&r.triangles);
-                closed[v] = r.closed;
-                manifold[v] = true;
-            }
-            offsets.push(ring.len() as u32);
-            fan_offsets.push(fan.len() as u32);
+        // Built in blocks of vertices, each block's rings flattened on its own thread and
+        // the blocks then joined: no per-vertex allocation survives the block, so the
+        // transient memory is about one more copy of the result (a Vec per vertex cost
+        // ~30 MB for a 400k-triangle scan, on top of its topology; issue #8).
+        struct Block {
+            ring_lengths: Vec<u32>,
+            fan_lengths: Vec<u32>,
+            ring: Vec<u32>,
+            fan: Vec<u32>,
+            closed: Vec<bool>,
+            manifold: Vec<bool>,
         }
-        let mut nb = Neighbourhood {
-            offsets,
-            ring,
-            fan_offsets,
-            fan,
-            orient: Vec::new(),
-            closed,
-            manifold,
-        };
-        let per_vertex: Vec<Vec<i8>> = (0..n)
+        let blocks: Vec<Block> = (0..n.div_ceil(BLOCK))
             .into_par_iter()
-            .map(|v| {
-                let r = nb.ring(v);
-                (0..r.len())
-                    .map(|i| {
+            .map(|b| {
+                let vertices = b * BLOCK..((b + 1) * BLOCK).min(n);
+                let mut block = Block {
+                    ring_lengths: Vec::with_capacity(vertices.len()),
+                    fan_lengths: Vec::with_capacity(vertices.len()),
+                    ring: Vec::new(),
+                    fan: Vec::new(),
+                    closed: Vec::with_capacity(vertices.len()),
+                    manifold: Vec::with_capacity(vertices.len()),
+                };
+                for v in vertices {
+                    let r = topo.ordered_ring(v as u32);
+                    let (closed, manifold) = match &r {
+                        Some(r) => {
+                            block.ring.extend_from_slice(&r.vertices);
+                            block.fan.extend_from_slice(&r.triangles);
+                            (r.closed, true)
+                        }
+                        None => (false, false),
+                    };
+                    let (ring_len, fan_len) =
+                        r.map_or((0, 0), |r| (r.vertices.len(), r.triangles.len()));
+                    block.ring_lengths.push(ring_len as u32);
+                    block.fan_lengths.push(fan_len as u32);
+                    block.closed.push(closed);
+                    block.manifold.push(manifold);
+                }
+                block
+            })
+            .collect();
+        let ring_total: usize = blocks.iter().map(|b| b.ring.len()).sum();
+        let fan_total: usize = blocks.iter().map(|b| b.fan.len()).sum();
+        let mut nb = Neighbourhood {
+            offsets: Vec::with_capacity(n + 1),
+            ring: Vec::with_capacity(ring_total),
+            fan_offsets: Vec::with_capacity(n + 1),
+            fan: Vec::with_capacity(fan_total),
+            orient: Vec::new(),
+            closed: Vec::with_capacity(n),
+            manifold: Vec::with_capacity(n),
+        };
+        nb.offsets.push(0);
+        nb.fan_offsets.push(0);
+        for block in blocks {
+            for (&r, &f) in block.ring_lengths.iter().zip(&block.fan_lengths) {
+                nb.offsets.push(nb.offsets.last().copied().unwrap_or(0) + r);
+                nb.fan_offsets
+                    .push(nb.fan_offsets.last().copied().unwrap_or(0) + f);
+            }
+            nb.ring.extend_from_slice(&block.ring);
+            nb.fan.extend_from_slice(&block.fan);
+            nb.closed.extend_from_slice(&block.closed);
+            nb.manifold.extend_from_slice(&block.manifold);
+        }
+        let orient_blocks: Vec<Vec<i8>> = (0..n.div_ceil(BLOCK))
+            .into_par_iter()
+            .map(|b| {
+                let mut out = Vec::new();
+                for v in b * BLOCK..((b + 1) * BLOCK).min(n) {
+                    let r = nb.ring(v);
+                    out.extend((0..r.len()).map(|i| {
                         if nb.closed[v] {
                             nb.relative_orientation(v as u32, r[i], r[(i + 1) % r.len()])
                         } else {
                             0
                         }
-                    })
-                    .collect()
+                    }));
+                }
+                out
             })
             .collect();
-        nb.orient = per_vertex.concat();
+        nb.orient = orient_blocks.concat();
         nb
     }
 

@@ -13,7 +13,6 @@ use super::guards::{
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::Sweep;
-use crate::mesh::Topology;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
@@ -208,8 +207,6 @@ pub struct Interior<'a> {
     pub movable_count: usize,
     /// Every triangle's vertices, for the fast sweep's global flip check.
     pub triangles: &'a [[u32; 3]],
-    /// For the triangles around a vertex.
-    pub topo: &'a Topology,
     /// Every triangle's reference at the start of the step (see [`check_triangle`]).
     pub references: &'a [Reference],
     /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
@@ -627,7 +624,9 @@ fn commit_parallel(
         }
         let mut around: Vec<u32> = touched
             .iter()
-            .flat_map(|&v| it.topo.vertex_triangles(v))
+            // Moved vertices are movable, so manifold with a closed fan: their fan is all
+            // the triangles around them.
+            .flat_map(|&v| it.nb.fan(v as usize).iter().copied())
             .collect();
         around.sort_unstable();
         around.dedup();
