@@ -124,7 +124,7 @@ fn regions(mesh: &Mesh, clean: &Mesh, hops: &[u32]) -> String {
             let (s, c) = d
                 .iter()
                 .zip(hops)
-                .filter(|&(_, &h)| h >= lo && h <= hi)
+                .filter(|&(_, &h)| (lo..=hi).contains(&h))
                 .fold((0.0, 0usize), |(s, c), (x, _)| (s + x, c + 1));
             format!(
                 "{name}: n {c} mean {:.3e} share {:.0}%",
