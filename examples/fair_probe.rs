@@ -59,9 +59,9 @@ fn border_hops(mesh: &Mesh) -> Vec<u32> {
     let n = mesh.positions.len();
     let mut hops = vec![u32::MAX; n];
     let mut queue = std::collections::VecDeque::new();
-    for v in 0..n {
+    for (v, h) in hops.iter_mut().enumerate() {
         if topo.is_boundary_vertex(v as u32) {
-            hops[v] = 0;
+            *h = 0;
             queue.push_back(v);
         }
     }
