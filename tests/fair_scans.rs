@@ -15,8 +15,8 @@ use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
 use scanmill::metrics::volume;
 use scanmill::ops::fair::{self, FairParams, FairReport, RelaxParams, guards};
 use scanmill::ops::smooth::{SmoothParams, smooth};
+use scanmill::recipe::{Recipe, Step};
 use std::path::Path;
-use std::time::Instant;
 
 const DATA: &str = "../shared/data";
 
@@ -69,6 +69,22 @@ fn relax_and_fair(mesh: &mut Mesh) -> (FairReport, FairReport) {
     let r = fair::relax(mesh, &RelaxParams::default());
     let f = fair::fair(mesh, &FairParams::default());
     (r, f)
+}
+
+/// The `relax` and `fair` steps of config/recipes/face-scan.toml, as the recipe sets them
+/// (fair: curvature criterion only after the pre-pass, thesis §4.6.3; docs/fairing.md).
+fn face_scan_recipe() -> (RelaxParams, FairParams) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/recipes/face-scan.toml");
+    let recipe = Recipe::from_path(&path).unwrap();
+    let relax = recipe.steps.iter().find_map(|s| match s {
+        Step::Relax(p) => Some(p.clone()),
+        _ => None,
+    });
+    let fair = recipe.steps.iter().find_map(|s| match s {
+        Step::Fair(p) => Some(p.clone()),
+        _ => None,
+    });
+    (relax.unwrap(), fair.unwrap())
 }
 
 // ------------------------------------------------------------------------------------
@@ -212,28 +228,34 @@ struct Row {
     smooth_step: f64,
     taubin: f64,
     taubin_volume: Option<f64>,
-    taubin_ms: f64,
+    /// relax then fair as the face-scan recipe sets them.
     ours: f64,
     ours_volume: Option<f64>,
-    fair_only: f64,
     relax: FairReport,
     fair: FairReport,
+    /// relax then fair with both steps' defaults.
+    defaults: f64,
+    defaults_volume: Option<f64>,
+    /// fair alone, its defaults.
+    fair_only: f64,
 }
 
 fn protocol(name: &'static str, rel: &str, samples: usize) -> Row {
     let clean = load(rel);
     let (noisy, _) = noisy_copy(&clean, &noise());
     let mut t = noisy.clone();
-    let start = Instant::now();
     taubin(&mut t, 0.53, -0.54, 13);
-    let taubin_ms = start.elapsed().as_secs_f64() * 1e3;
     let mut s = noisy.clone();
     smooth(
         &mut s,
         &SmoothParams::defaults(scanmill::ops::smooth::MethodName::Taubin),
     );
+    let (relax_params, fair_params) = face_scan_recipe();
     let mut ours = noisy.clone();
-    let (relax, fair) = relax_and_fair(&mut ours);
+    let relax = fair::relax(&mut ours, &relax_params);
+    let fair = fair::fair(&mut ours, &fair_params);
+    let mut defaults = noisy.clone();
+    relax_and_fair(&mut defaults);
     let mut fair_only = noisy.clone();
     fair::fair(&mut fair_only, &FairParams::default());
     Row {
@@ -243,34 +265,64 @@ fn protocol(name: &'static str, rel: &str, samples: usize) -> Row {
         smooth_step: distance(&s, &clean, samples),
         taubin: distance(&t, &clean, samples),
         taubin_volume: volume_change_percent(&t, &clean),
-        taubin_ms,
         ours: distance(&ours, &clean, samples),
         ours_volume: volume_change_percent(&ours, &clean),
-        fair_only: distance(&fair_only, &clean, samples),
         relax,
         fair,
+        defaults: distance(&defaults, &clean, samples),
+        defaults_volume: volume_change_percent(&defaults, &clean),
+        fair_only: distance(&fair_only, &clean, samples),
     }
 }
 
 #[test]
-fn noisy_bunny_is_faired_about_as_well_as_taubin() {
+fn noisy_bunny_is_faired_better_than_taubin_by_the_face_scan_recipe() {
     let row = protocol("bunny", "untextured/stanford_bunny/bun_zipper.ply", 30_000);
     eprintln!(
-        "bunny: noisy {:.3e}, Taubin {:.3} of noisy, relax+fair {:.3}, fair {:.3}",
+        "bunny: noisy {:.3e}, Taubin {:.3} of noisy; face-scan relax+fair {:.3} ({:.3} of Taubin); defaults relax+fair {:.3}, fair {:.3}",
         row.noisy,
         row.taubin / row.noisy,
         row.ours / row.noisy,
+        row.ours / row.taubin,
+        row.defaults / row.noisy,
         row.fair_only / row.noisy
     );
-    // Measured (30k samples): Taubin 0.585 of the noisy distance, fair 0.62, relax + fair
-    // 0.70. The thesis' method is about as good a denoiser as Taubin here, not better.
+    // The noise protocol is seeded and fairing is deterministic, so these are fixed
+    // numbers, not timings. Measured (30k samples): see docs/fairing.md.
+    assert!(
+        row.ours < row.taubin,
+        "recipe relax + fair not below Taubin"
+    );
     assert!(row.fair_only < 0.7 * row.noisy);
-    assert!(row.fair_only < 1.15 * row.taubin);
+    assert!(row.fair_only < 1.1 * row.taubin);
+    assert_eq!(row.relax.flipped_vs_input, 0);
     assert_eq!(row.fair.flipped_vs_input, 0);
 }
 
 fn pct(x: Option<f64>) -> String {
     x.map_or("open".into(), |v| format!("{v:+.3}%"))
+}
+
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
+}
+
+/// CPU seconds of this process so far (utime + stime, /proc/self/stat, 10 ms ticks).
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let fields: Vec<&str> = stat
+        .rsplit_once(')')
+        .map(|(_, rest)| rest.split_whitespace().collect())
+        .unwrap_or_default();
+    let tick = |i: usize| {
+        fields
+            .get(i)
+            .and_then(|f| f.parse::<f64>().ok())
+            .unwrap_or(0.0)
+    };
+    (tick(11) + tick(12)) / 100.0
 }
 
 #[test]
@@ -286,32 +338,36 @@ fn figures_noise_protocol_against_taubin() {
         ("bunny", "untextured/stanford_bunny/bun_zipper.ply"),
     ];
     println!(
-        "| scan | V | noisy dist | Taubin 13 passes (×noisy) | Taubin vol | smooth step taubin (×noisy) | relax+fair (×noisy, ×Taubin) | vol | fair only (×Taubin) | relax ms | fair ms | iterations | Mupd/s |"
+        "noise protocol: sigma 0.2 x mean edge along normals, seed 1; distance = mean surface distance to the clean scan (200k samples each way); load average at start {}",
+        load_average()
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| scan | V | noisy dist | Taubin (x noisy) | Taubin vol | ours: face-scan relax+fair (x noisy) | ours / Taubin | ours vol | relax ms | fair ms | iterations relax+fair | defaults relax+fair / Taubin | defaults vol | fair alone / Taubin |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, rel) in scans {
         let r = protocol(name, rel, 200_000);
         println!(
-            "| {} | {} | {:.3e} | {:.3} | {} | {:.3} | {:.3}, {:.3} | {} | {:.3} | {:.0} | {:.0} | {}+{} (×{}) | {:.1} |",
+            "| {} | {} | {:.3e} | {:.3} | {} | {:.3} | **{:.3}** | {} | {:.0} | {:.0} | {}+{} | {:.3} | {} | {:.3} |",
             r.name,
             r.vertices,
             r.noisy,
             r.taubin / r.noisy,
             pct(r.taubin_volume),
-            r.smooth_step / r.noisy,
             r.ours / r.noisy,
             r.ours / r.taubin,
             pct(r.ours_volume),
-            r.fair_only / r.taubin,
             r.relax.time_ms,
             r.fair.time_ms,
-            r.relax.iterations,
-            r.fair.iterations,
-            r.fair.time_scale,
-            r.fair.updates_per_second / 1e6,
+            r.relax.iterations * r.relax.time_scale,
+            r.fair.iterations * r.fair.time_scale,
+            r.defaults / r.taubin,
+            pct(r.defaults_volume),
+            r.fair_only / r.taubin,
         );
-        let _ = r.taubin_ms;
+        let _ = r.smooth_step;
     }
+    println!("load average at end {}", load_average());
 }
 
 #[test]
@@ -321,21 +377,32 @@ fn figures_speed_on_200k_vertices() {
     let lucy =
         scanmill::ops::subdivide::subdivide(&load("untextured/misc_scans/stanford_lucy_100k.ply"));
     let (noisy, _) = noisy_copy(&lucy, &noise());
-    for threads in [1, 2] {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let mut m = noisy.clone();
-        let r = pool.install(|| fair::fair(&mut m, &FairParams::default()));
-        println!(
-            "{} vertices, {threads} thread(s): fair {:.0} ms, {} iterations (×{}), {:.1} M vertex updates/s, distance {:.3} of noisy",
-            m.positions.len(),
-            r.time_ms,
-            r.iterations,
-            r.time_scale,
-            r.updates_per_second / 1e6,
-            distance(&m, &lucy, 100_000) / distance(&noisy, &lucy, 100_000)
-        );
+    let (_, recipe_fair) = face_scan_recipe();
+    println!("load average {}", load_average());
+    for (label, params) in [
+        ("defaults", FairParams::default()),
+        ("face-scan recipe", recipe_fair),
+    ] {
+        for threads in [1, 2] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut m = noisy.clone();
+            let cpu = cpu_seconds();
+            let r = pool.install(|| fair::fair(&mut m, &params));
+            let cpu = cpu_seconds() - cpu;
+            println!(
+                "{} vertices, fair {label}, {threads} thread(s): {:.0} ms wall, {:.0} ms CPU, {} iterations (×{}), {:.1} M vertex updates/s, distance {:.3} of noisy",
+                m.positions.len(),
+                r.time_ms,
+                cpu * 1e3,
+                r.iterations,
+                r.time_scale,
+                r.updates_per_second / 1e6,
+                distance(&m, &lucy, 100_000) / distance(&noisy, &lucy, 100_000)
+            );
+        }
     }
+    println!("load average {}", load_average());
 }
