@@ -114,6 +114,7 @@ pub struct PreviewFigures {
 }
 
 /// A rendered preview.
+#[derive(Debug)]
 pub struct Preview {
     pub image: RgbImage,
     pub figures: PreviewFigures,

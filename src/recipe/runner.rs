@@ -82,6 +82,7 @@ pub fn metrics_value(result: &Mesh, reference: &Mesh, options: &MetricsOptions) 
 }
 
 /// The steps' reports, the final metrics and the preview.
+#[derive(Debug)]
 pub struct RunOutcome {
     pub steps: Vec<StepReport>,
     /// `metrics::FinalMetrics` of the result against the input as JSON (the input as the
@@ -311,11 +312,11 @@ fn run_steps_observed(
             seam_reference = Some(Arc::new(old));
         }
         let run_goes_on = recipe.steps.get(i + 1).is_some_and(moves_vertices);
-        if !run_goes_on || before.is_some() {
-            if let (Some(from), Value::Object(map)) = (follow_from.take(), &mut figures) {
-                let report = ops::texture_follow::follow(mesh, from);
-                map.insert("texture_follow".into(), self::figures(report));
-            }
+        if (!run_goes_on || before.is_some())
+            && let (Some(from), Value::Object(map)) = (follow_from.take(), &mut figures)
+        {
+            let report = ops::texture_follow::follow(mesh, from);
+            map.insert("texture_follow".into(), self::figures(report));
         }
         debug_assert!(mesh.check_invariants().is_ok(), "{}", step.kind());
         changed = true;
