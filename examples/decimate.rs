@@ -314,7 +314,8 @@ fn run_meshopt(mesh: &Mesh, target: usize, uv_weight: f32) -> Mesh {
         &[uv_weight, uv_weight],
         8,
         &locks,
-        target * 3,
+        // meshoptimizer asserts on a target above the input (james has 12,228 faces).
+        target.min(mesh.triangles.len()) * 3,
         1.0,
         meshopt::SimplifyOptions::None,
         None,
@@ -374,19 +375,41 @@ fn main() {
             let _ = Method::FaceCollapse;
         }
     }
+    let image = args
+        .quality
+        .then(|| {
+            args.texture.clone().or_else(|| {
+                mesh.materials
+                    .iter()
+                    .find_map(|m| m.diffuse_texture.as_ref().map(|t| t.path.clone()))
+            })
+        })
+        .flatten()
+        .and_then(|p| image::open(p).ok())
+        .map(|i| Image(i.to_rgb8()));
     if args.seam_fix {
+        if args.quality {
+            // The same figures before the fix, so that one run gives both.
+            println!(
+                "{}",
+                serde_json::json!({ "before_seam_fix": quality(&mesh, &out, image.as_ref()) })
+            );
+        }
+        if args.meshopt {
+            // meshoptimizer records no origins: take for each output triangle the input
+            // triangle closest to its centroid.
+            let grid = Grid::new(&mesh);
+            out.triangle_origins = (0..out.triangles.len())
+                .map(|t| {
+                    let p = out.triangle_positions(t);
+                    grid.closest((p[0] + p[1] + p[2]) / 3.0).1 as u32
+                })
+                .collect();
+        }
         let r = scanmill::ops::seam_fix::seam_fix(&mut out, &mesh, &Default::default());
         println!("{}", serde_json::to_string(&r).unwrap());
     }
     if args.quality {
-        let path = args.texture.clone().or_else(|| {
-            mesh.materials
-                .iter()
-                .find_map(|m| m.diffuse_texture.as_ref().map(|t| t.path.clone()))
-        });
-        let image = path
-            .and_then(|p| image::open(p).ok())
-            .map(|i| Image(i.to_rgb8()));
         println!("{}", quality(&mesh, &out, image.as_ref()));
     }
     if args.audit {

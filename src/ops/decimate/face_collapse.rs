@@ -66,6 +66,7 @@ fn attempt<const M: usize>(
     work: &mut Work<M>,
     op: Operator,
     t: usize,
+    best: Option<(usize, f64)>,
     max_error: f64,
     sc: &mut Scratch<M>,
     stats: &mut LoopStats,
@@ -85,7 +86,7 @@ fn attempt<const M: usize>(
             work.apply(&plan, sc);
             Ok(plan)
         }
-        Operator::Edge => edge_collapse::attempt(work, t, max_error, sc, stats),
+        Operator::Edge => edge_collapse::attempt(work, t, best, max_error, sc, stats),
     }
 }
 
@@ -218,9 +219,8 @@ pub fn run<const M: usize>(
     // 3 = unknown) and the FROZEN bit. Filled in the same parallel pass as the keys, in
     // place, so that no second array of keys is needed (peak memory).
     let mut aux = vec![3u8; nt];
-    let mut entries = vec![(0u64, 0u32); nt];
-    {
-        let w: &Work<M> = work;
+    let w: &Work<M> = work;
+    let mut heap = IndexedHeap::build(nt, |entries| {
         entries
             .par_iter_mut()
             .zip(aux.par_iter_mut())
@@ -246,10 +246,8 @@ pub fn run<const M: usize>(
                 };
                 *e = (k, t as u32);
             });
-    }
+    });
     stats.evaluations += nt;
-    entries.retain(|e| e.0 != u64::MAX);
-    let mut heap = IndexedHeap::from_entries(nt, entries);
     let mut sc = Scratch::<M>::default();
     let mut memo = Vec::with_capacity(16);
     let mut fan = Vec::with_capacity(32);
@@ -258,13 +256,16 @@ pub fn run<const M: usize>(
     let mut pops = 0usize;
     stats.stopped_by = "target";
     while work.live > target {
-        let Some((_, t)) = heap.pop() else {
+        let Some((k, t)) = heap.pop() else {
             stats.stopped_by = "no-candidates";
             break;
         };
         pops += 1;
         let t = t as usize;
-        match attempt(work, op, t, max_error, &mut sc, &mut stats) {
+        // Edge collapse: the cheapest side and its cost, as keyed (see `fan_candidates`).
+        let best = (op == Operator::Edge && aux[t] & !FROZEN < 3)
+            .then(|| ((aux[t] & !FROZEN) as usize, f64::from_bits(k)));
+        match attempt(work, op, t, best, max_error, &mut sc, &mut stats) {
             Ok(plan) => {
                 stats.collapses += 1;
                 stats.max_error = stats.max_error.max(plan.error);

@@ -307,17 +307,20 @@ impl<const M: usize> WedgeQuadrics<M> {
         let (s64, s32) = self.strides();
         let a = &self.f64s[w * s64..(w + 1) * s64];
         let b = &self.f32s[w * s32..(w + 1) * s32];
+        let wide = self.wide;
         let mut q = AttrPart::<M>::default();
-        for j in 0..self.wide {
-            q.g[j] = [a[4 * j], a[4 * j + 1], a[4 * j + 2]];
-            q.delta[j] = a[4 * j + 3];
+        // One loop over the constant M (unrolled), no copies of run-time length.
+        for j in 0..M {
+            if j < wide {
+                q.g[j] = [a[4 * j], a[4 * j + 1], a[4 * j + 2]];
+                q.delta[j] = a[4 * j + 3];
+            } else {
+                let i = 4 * (j - wide);
+                q.g[j] = [b[i] as f64, b[i + 1] as f64, b[i + 2] as f64];
+                q.delta[j] = b[i + 3] as f64;
+            }
         }
-        for j in self.wide..M {
-            let i = 4 * (j - self.wide);
-            q.g[j] = [b[i] as f64, b[i + 1] as f64, b[i + 2] as f64];
-            q.delta[j] = b[i + 3] as f64;
-        }
-        q.alpha = a[4 * self.wide];
+        q.alpha = a[4 * wide];
         q
     }
 
@@ -425,25 +428,31 @@ impl<const M: usize> WedgeAttrs<M> {
     #[inline]
     pub fn get(&self, w: usize) -> [f64; M] {
         let (wide, narrow) = (self.wide, M - self.wide);
-        let mut a = [0.0; M];
-        a[..wide].copy_from_slice(&self.f64s[w * wide..(w + 1) * wide]);
-        for (x, &y) in a[wide..]
-            .iter_mut()
-            .zip(&self.f32s[w * narrow..(w + 1) * narrow])
-        {
-            *x = y as f64;
-        }
-        a
+        let (a, b) = (
+            &self.f64s[w * wide..(w + 1) * wide],
+            &self.f32s[w * narrow..(w + 1) * narrow],
+        );
+        // A loop over the constant M (unrolled) rather than a copy of run-time length
+        // (a `memcpy` call per wedge in the collapse loop).
+        std::array::from_fn(|j| if j < wide { a[j] } else { b[j - wide] as f64 })
     }
 
     /// The first two attributes (texture coordinates when the mesh has them).
     #[inline]
     pub fn uv(&self, w: usize) -> [f64; 2] {
-        let a = self.get(w);
-        [
-            a.first().copied().unwrap_or(0.0),
-            a.get(1).copied().unwrap_or(0.0),
-        ]
+        // Read in place: a copy of the whole record through `get` has a run-time length
+        // (`wide`), which costs a `memcpy` call in the collapse loop's hot checks.
+        let wide = self.wide;
+        let at = |j: usize| {
+            if j < wide {
+                self.f64s[w * wide + j]
+            } else if j < M {
+                self.f32s[w * (M - wide) + j - wide] as f64
+            } else {
+                0.0
+            }
+        };
+        [at(0), at(1)]
     }
 
     #[inline]
@@ -573,6 +582,17 @@ impl Reduced {
         max_cond: f64,
         regularise: bool,
     ) -> ([f64; 3], bool) {
+        self.minimise_with(|| fallback, max_cond, regularise)
+    }
+
+    /// [`Reduced::minimise`] with the fallback position computed only when it is needed.
+    #[inline]
+    pub fn minimise_with(
+        &self,
+        fallback: impl FnOnce() -> [f64; 3],
+        max_cond: f64,
+        regularise: bool,
+    ) -> ([f64; 3], bool) {
         // Cheap sufficient test first: for a positive definite 3×3 matrix
         // λ_max/λ_min ≤ λ_max³/det ≤ trace³/det, so trace³ ≤ max_cond·det proves it well
         // conditioned without the eigenvalues; only the doubtful cases pay for them.
@@ -589,6 +609,7 @@ impl Reduced {
         if ok && let Some(p) = solve_sym3(&self.m, scale(self.r, -1.0)) {
             return (p, false);
         }
+        let fallback = fallback();
         if !regularise || !(lmax > 0.0) || !lmax.is_finite() {
             return (fallback, true);
         }

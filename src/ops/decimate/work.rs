@@ -628,26 +628,31 @@ impl<'a, const M: usize> Work<'a, M> {
             }
             return (pi, Placement::Anchor(i), false);
         }
-        let mut mean = [0.0; 3];
-        for &v in s {
-            let pv = self.pos[v as usize];
-            for k in 0..3 {
-                mean[k] += pv[k] / s.len() as f64;
+        // The mean of the merged vertices: only the ill-conditioned fallback needs it, so it
+        // is computed only then (most placements in the collapse loop never do).
+        let mean = || {
+            let mut mean = [0.0; 3];
+            for &v in s {
+                let pv = self.pos[v as usize];
+                for k in 0..3 {
+                    mean[k] += pv[k] / s.len() as f64;
+                }
             }
-        }
+            mean
+        };
         let regularise = self.cfg.fallback == Fallback::Regularised;
         match (self.cfg.conditioning, dense) {
             (Conditioning::ThesisLiteral, Some(dense)) => {
                 let cond = dense_condition_number(dense, &self.w);
                 if cond > self.cfg.max_condition {
-                    (mean, Placement::Free, true)
+                    (mean(), Placement::Free, true)
                 } else {
-                    let (p, fb) = red.minimise(mean, f64::INFINITY, regularise);
+                    let (p, fb) = red.minimise_with(mean, f64::INFINITY, regularise);
                     (p, Placement::Free, fb)
                 }
             }
             _ => {
-                let (p, fb) = red.minimise(mean, self.cfg.max_condition, regularise);
+                let (p, fb) = red.minimise_with(mean, self.cfg.max_condition, regularise);
                 (p, Placement::Free, fb)
             }
         }
