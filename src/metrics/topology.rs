@@ -62,9 +62,8 @@ fn boundary_segments(mesh: &Mesh, topology: &Topology) -> Vec<[DVec3; 2]> {
         .collect()
 }
 
-/// The reference's half of [`compare`], prepared once: its counts and an index over its
-/// boundary edges. Keeping only these lets the reference's full topology go before the
-/// closest-point index is built (issue #8's memory budget).
+/// The reference's half of [`compare`]: its counts and an index over its boundary edges;
+/// its full topology is dropped as soon as these are taken.
 pub struct ReferenceTopology {
     pub snapshot: TopologySnapshot,
     /// The reference's boundary edges as a polyline (`None`: a closed reference).
@@ -111,18 +110,6 @@ fn count_cracks(result_boundary: &[[DVec3; 2]], reference: &ReferenceTopology) -
                 > reference.crack_distance
         })
         .count()
-}
-
-/// The topology of `result` against a prepared reference.
-pub fn compare_with(result: &Mesh, reference: &ReferenceTopology) -> TopologyComparison {
-    let (after, result_topology) = TopologySnapshot::of(result);
-    let cracks = count_cracks(&boundary_segments(result, &result_topology), reference);
-    TopologyComparison {
-        before: reference.snapshot,
-        after,
-        cracks,
-        crack_distance: reference.crack_distance,
-    }
 }
 
 pub fn compare(result: &Mesh, reference: &Mesh, crack_distance_factor: f64) -> TopologyComparison {
