@@ -268,6 +268,48 @@ fn quality(input: &Mesh, out: &Mesh, image: Option<&Image>) -> serde_json::Value
     let uv: Vec<f64> = res.iter().filter_map(|r| r.1).collect();
     let uv_mean = uv.iter().sum::<f64>() / uv.len().max(1) as f64;
     let uv_rms = (uv.iter().map(|x| x * x).sum::<f64>() / uv.len().max(1) as f64).sqrt();
+    // Share of samples whose texture coordinate is far off (across a chart, typically),
+    // and how many of those lie on triangles with a seam vertex (two or more wedges).
+    let uv_far = uv.iter().filter(|&&x| x > 0.05).count() as f64 / uv.len().max(1) as f64;
+    let seam_vertex = {
+        let mut first: Vec<Option<DVec2>> = vec![None; out.positions.len()];
+        let mut seam = vec![false; out.positions.len()];
+        for w in &out.wedges {
+            let uv = w.texcoord.map(|t| out.texcoords[t as usize]);
+            if let Some(uv) = uv {
+                match first[w.vertex as usize] {
+                    None => first[w.vertex as usize] = Some(uv),
+                    Some(f) if f != uv => seam[w.vertex as usize] = true,
+                    _ => {}
+                }
+            }
+        }
+        seam
+    };
+    let far_at_seam = pts
+        .iter()
+        .zip(&res)
+        .filter(|(_, r)| r.1.is_some_and(|x| x > 0.05))
+        .filter(|((t, _), _)| {
+            out.triangle_vertices(*t)
+                .iter()
+                .any(|&v| seam_vertex[v as usize])
+        })
+        .count() as f64
+        / res
+            .iter()
+            .filter(|r| r.1.is_some_and(|x| x > 0.05))
+            .count()
+            .max(1) as f64;
+    let seam_share = pts
+        .iter()
+        .filter(|(t, _)| {
+            out.triangle_vertices(*t)
+                .iter()
+                .any(|&v| seam_vertex[v as usize])
+        })
+        .count() as f64
+        / pts.len() as f64;
     let col: Vec<f64> = res.iter().filter_map(|r| r.2).collect();
     let col_mean = col.iter().sum::<f64>() / col.len().max(1) as f64;
     let col_rms = (col.iter().map(|x| x * x).sum::<f64>() / col.len().max(1) as f64).sqrt();
@@ -280,6 +322,9 @@ fn quality(input: &Mesh, out: &Mesh, image: Option<&Image>) -> serde_json::Value
         "max_pct": 100.0 * max / diag,
         "uv_mean": uv_mean,
         "uv_rms": uv_rms,
+        "uv_far": uv_far,
+        "uv_far_at_seam": far_at_seam,
+        "seam_share": seam_share,
     })
 }
 

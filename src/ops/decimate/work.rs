@@ -66,6 +66,7 @@ pub fn oct_decode(e: u32) -> [f64; 3] {
 pub struct Config {
     pub boundary: BoundaryMode,
     pub boundary_weight: f64,
+    pub seam_weight: f64,
     pub conditioning: Conditioning,
     pub max_condition: f64,
     pub fallback: Fallback,
@@ -470,6 +471,21 @@ impl<'a, const M: usize> Work<'a, M> {
                                             != self.input.triangle_material(tj)
                                     {
                                         seam_edges += 1;
+                                        if self.cfg.seam_weight > 0.0 {
+                                            // One plane per side, each with half the weight.
+                                            let pv = self.pos[v];
+                                            let e = sub(self.pos[x as usize], pv);
+                                            for t in [ti, tj] {
+                                                let pn = cross(e, self.unit_normal(t));
+                                                let l = dot(pn, pn).sqrt();
+                                                if l > 0.0 {
+                                                    let pn = pn.map(|c| c / l);
+                                                    let weight =
+                                                        0.5 * self.cfg.seam_weight * dot(e, e);
+                                                    planes.push((pn, pv, weight));
+                                                }
+                                            }
+                                        }
                                     }
                                 }
                                 _ => {} // non-manifold edge: the link test fails below
