@@ -684,7 +684,14 @@ impl<'a, const M: usize> Work<'a, M> {
             red.add(&self.vred[v as usize]);
         }
         let (p, _, _) = self.place(s, anchors, &red, None);
-        Ok(red.eval(p))
+        let cost = red.eval(p);
+        // A NaN (only from degenerate geometry; none occurs on the scans in ../shared/data)
+        // would become the heap's cheapest key (`key` clamps with `max`, which drops NaN):
+        // refuse it instead.
+        if cost.is_nan() {
+            return Err(Refusal::Degenerate);
+        }
+        Ok(cost)
     }
 
     /// Gathers the star of S, groups the wedges and places the merged vertex.
