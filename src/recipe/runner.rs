@@ -74,10 +74,7 @@ fn moves_vertices(step: &Step) -> bool {
 pub fn metrics_value(result: &Mesh, reference: &Mesh, options: &MetricsOptions) -> Value {
     match metrics::compare(result, reference, options) {
         Ok(m) => serde_json::to_value(m).expect("metrics always serialise"),
-        Err(e) => {
-            tracing::warn!(error = %e, "metrics not computed");
-            serde_json::json!({ "error": e.to_string() })
-        }
+        Err(e) => metrics_error(&e),
     }
 }
 

@@ -445,17 +445,8 @@ impl<'a, const M: usize> Work<'a, M> {
                                 (None, _) => {
                                     border_edges += 1;
                                     if self.cfg.boundary == BoundaryMode::Weighted {
-                                        let pv = self.pos[v];
-                                        let px = self.pos[x as usize];
-                                        let e = sub(px, pv);
-                                        let n = self.unit_normal(ti);
-                                        let pn = cross(e, n);
-                                        let l = dot(pn, pn).sqrt();
-                                        if l > 0.0 {
-                                            let pn = pn.map(|c| c / l);
-                                            let weight = self.cfg.boundary_weight * dot(e, e);
-                                            planes.push((pn, pv, weight));
-                                        }
+                                        let w = self.cfg.boundary_weight;
+                                        planes.extend(self.edge_plane(v, x, ti, w));
                                     }
                                 }
                                 (Some(&cj), None) => {
@@ -473,17 +464,9 @@ impl<'a, const M: usize> Work<'a, M> {
                                         seam_edges += 1;
                                         if self.cfg.seam_weight > 0.0 {
                                             // One plane per side, each with half the weight.
-                                            let pv = self.pos[v];
-                                            let e = sub(self.pos[x as usize], pv);
+                                            let w = 0.5 * self.cfg.seam_weight;
                                             for t in [ti, tj] {
-                                                let pn = cross(e, self.unit_normal(t));
-                                                let l = dot(pn, pn).sqrt();
-                                                if l > 0.0 {
-                                                    let pn = pn.map(|c| c / l);
-                                                    let weight =
-                                                        0.5 * self.cfg.seam_weight * dot(e, e);
-                                                    planes.push((pn, pv, weight));
-                                                }
+                                                planes.extend(self.edge_plane(v, x, t, w));
                                             }
                                         }
                                     }
@@ -527,6 +510,23 @@ impl<'a, const M: usize> Work<'a, M> {
                 self.vred[v].add_plane(&Quadric::<M>::plane(n, point, weight));
             }
         }
+    }
+
+    /// The constraint plane (Garland–Heckbert) through edge (v, x), perpendicular to
+    /// triangle `t`, of weight `weight` × |e|² as (unit normal, point, weight); `None` when
+    /// the edge or the triangle is degenerate.
+    fn edge_plane(
+        &self,
+        v: usize,
+        x: u32,
+        t: usize,
+        weight: f64,
+    ) -> Option<([f64; 3], [f64; 3], f64)> {
+        let pv = self.pos[v];
+        let e = sub(self.pos[x as usize], pv);
+        let pn = cross(e, self.unit_normal(t));
+        let l = dot(pn, pn).sqrt();
+        (l > 0.0).then(|| (pn.map(|c| c / l), pv, weight * dot(e, e)))
     }
 
     fn unit_normal(&self, t: usize) -> [f64; 3] {

@@ -59,17 +59,14 @@ impl Neighbourhood {
                     manifold: Vec::with_capacity(vertices.len()),
                 };
                 for v in vertices {
-                    let r = topo.ordered_ring(v as u32);
-                    let (closed, manifold) = match &r {
+                    let (ring_len, fan_len, closed, manifold) = match topo.ordered_ring(v as u32) {
                         Some(r) => {
                             block.ring.extend_from_slice(&r.vertices);
                             block.fan.extend_from_slice(&r.triangles);
-                            (r.closed, true)
+                            (r.vertices.len(), r.triangles.len(), r.closed, true)
                         }
-                        None => (false, false),
+                        None => (0, 0, false, false),
                     };
-                    let (ring_len, fan_len) =
-                        r.map_or((0, 0), |r| (r.vertices.len(), r.triangles.len()));
                     block.ring_lengths.push(ring_len as u32);
                     block.fan_lengths.push(fan_len as u32);
                     block.closed.push(closed);
