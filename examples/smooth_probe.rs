@@ -1,5 +1,6 @@
 //! Speed probe: smoothing throughput on one scan, per method, for the closing figures.
-//! `cargo run --release --example smooth_probe -- SCAN [ITERATIONS]`
+//! `cargo run --release --example smooth_probe -- SCAN [ITERATIONS] [METHOD…]`
+//! (METHOD: only the cases whose name starts with it, e.g. `bilateral`)
 //!
 //! Prints wall-clock throughput and, because the project machine is shared, also the
 //! throughput implied by the process' CPU time (utime + stime from /proc/self/stat) spread
@@ -27,8 +28,11 @@ fn cpu_seconds() -> f64 {
 
 fn main() {
     let mut args = std::env::args().skip(1);
-    let path = args.next().expect("usage: smooth_probe SCAN [ITERATIONS]");
+    let path = args
+        .next()
+        .expect("usage: smooth_probe SCAN [ITERATIONS] [METHOD...]");
     let iterations: u32 = args.next().map_or(20, |s| s.parse().unwrap());
+    let only: Vec<String> = args.collect();
     let options = LoadOptions {
         check_textures: false,
         ..Default::default()
@@ -60,6 +64,9 @@ fn main() {
         ("bilateral 3", file(MethodName::Bilateral, None, Some(3))),
     ];
     for (name, file) in cases {
+        if !only.is_empty() && !only.iter().any(|o| name.starts_with(o.as_str())) {
+            continue;
+        }
         let params = SmoothParams::try_from(file).unwrap();
         let start = std::time::Instant::now();
         let smoother = Smoother::new(&mesh, &params);
