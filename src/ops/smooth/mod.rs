@@ -543,16 +543,21 @@ impl Smoother {
     pub fn new(mesh: &Mesh, params: &SmoothParams) -> Smoother {
         let topology = mesh.topology();
         let graph = SmoothGraph::new(&topology, params.boundary, uses_cotangent(params));
-        let rings = match params.method {
-            SmoothMethod::Bilateral(p) => bilateral::Rings::new(&topology, p.rings),
-            _ => bilateral::Rings::default(),
-        };
         let length_unit = match params.method {
             SmoothMethod::Bilateral(BilateralParams {
                 units: LengthUnits::MeanEdge,
                 ..
             }) => mesh.mean_edge_length(),
             _ => 1.0,
+        };
+        let rings = match params.method {
+            SmoothMethod::Bilateral(p) => bilateral::Rings::new(
+                &topology,
+                p.rings,
+                &mesh.positions,
+                bilateral::ball_radius(&p, length_unit),
+            ),
+            _ => bilateral::Rings::default(),
         };
         Smoother {
             topology,
