@@ -310,7 +310,9 @@ pub(super) fn run(
     let sigma_s = params.sigma_s * unit;
     let radius = ball_radius(params, unit);
     let kernel = Kernel {
-        radius_sq: (radius * radius) as f32,
+        // Kept below the padding's squared distance (3·FAR²), so that padding is never
+        // inside, whatever radius is asked for.
+        radius_sq: (radius * radius).min(1e36) as f32,
         inv_2sc2: (1.0 / (2.0 * sigma_c * sigma_c)) as f32,
         inv_2ss2: (1.0 / (2.0 * sigma_s * sigma_s)) as f32,
     };
