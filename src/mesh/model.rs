@@ -129,12 +129,7 @@ impl Mesh {
 
     /// Axis-aligned bounding box of the positions, `None` for an empty mesh.
     pub fn bounding_box(&self) -> Option<(DVec3, DVec3)> {
-        let first = *self.positions.first()?;
-        Some(
-            self.positions
-                .iter()
-                .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))),
-        )
+        bounding_box_of(&self.positions)
     }
 
     /// Length of the bounding-box diagonal (0 for an empty mesh).
@@ -203,4 +198,15 @@ impl Mesh {
         }
         Ok(())
     }
+}
+
+/// Axis-aligned bounding box of `points`, `None` when there are none (for positions that
+/// are not, or no longer, a [`Mesh`]'s).
+pub fn bounding_box_of(points: &[DVec3]) -> Option<(DVec3, DVec3)> {
+    let first = *points.first()?;
+    Some(
+        points
+            .iter()
+            .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))),
+    )
 }

@@ -33,6 +33,7 @@
 //!   (half the bytes per candidate, four lanes per vector; docs/smoothing.md, "Speed").
 
 use super::{BilateralParams, CHUNK, SmoothGraph};
+use crate::mesh::model::bounding_box_of;
 use crate::mesh::topology::Topology;
 use glam::{DVec3, Mat4, Vec3A, Vec4};
 use rayon::prelude::*;
@@ -329,15 +330,7 @@ pub(super) fn run(
     }
     // The bounding box's centre: single-precision differences are then as precise as the
     // scan's extent allows, wherever the scanner put its origin.
-    let (lo, hi) = positions.iter().fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(lo, hi), &p| (lo.min(p), hi.max(p)),
-    );
-    let centre = if lo.cmple(hi).all() {
-        (lo + hi) / 2.0
-    } else {
-        DVec3::ZERO
-    };
+    let centre = bounding_box_of(positions).map_or(DVec3::ZERO, |(lo, hi)| (lo + hi) / 2.0);
     let mut local = Vec::with_capacity(n);
     let mut faces = Vec::with_capacity(topology.triangle_count());
     let mut normals = vec![Vec3A::ZERO; n];
