@@ -30,7 +30,8 @@
 //!   box's centre, and adds each move to the double-precision position. The weights and the
 //!   move need no more: the compare metrics on igea, lucy and the bunny (σ = 0.2 noise) are
 //!   the same to the four digits printed as in double precision, and a pass is faster
-//!   (half the bytes per candidate, four lanes per vector; docs/smoothing.md, "Speed").
+//!   (half the bytes per candidate, four or eight lanes per vector; docs/smoothing.md,
+//!   "Speed").
 
 use super::{BilateralParams, CHUNK, SmoothGraph};
 use crate::mesh::model::bounding_box_of;
@@ -148,12 +149,39 @@ impl Rings {
 
 /// The working copy the filter reads: positions in single precision, relative to `centre`
 /// so that differences of nearby vertices keep their precision (a scan far from the origin
-/// loses none), one 16-byte vector each (w = 0), and one point more, far away, that the
-/// padding of the candidate lists refers to.
-fn local_positions(x: &[DVec3], centre: DVec3, out: &mut Vec<Vec4>) {
-    out.clear();
-    out.par_extend(x.par_iter().map(|&p| (p - centre).as_vec3().extend(0.0)));
-    out.push(Vec4::new(FAR, FAR, FAR, 0.0));
+/// loses none), one 16-byte vector each (w = 0). Its length is a power of two above the
+/// vertex count, the rest filled with a point far away (the padding of the candidate lists
+/// refers to index n): then `index & (len − 1)` is in bounds by construction, and the
+/// inner loops need no bounds check (a quarter of the instructions of a group otherwise).
+struct WorkingCopy {
+    x: Vec<Vec4>,
+}
+
+impl WorkingCopy {
+    fn new(n: usize) -> WorkingCopy {
+        WorkingCopy {
+            x: vec![Vec4::new(FAR, FAR, FAR, 0.0); (n + 1).next_power_of_two()],
+        }
+    }
+
+    fn update(&mut self, positions: &[DVec3], centre: DVec3) {
+        self.x[..positions.len()]
+            .par_iter_mut()
+            .zip(positions.par_iter())
+            .for_each(|(l, &p)| *l = (p - centre).as_vec3().extend(0.0));
+    }
+}
+
+/// The mask that keeps a candidate index inside the working copy `x` (see [`WorkingCopy`]):
+/// `len − 1`, which also clears [`OUTER`]. The compiler sees `i & (len − 1) < len`, so the
+/// lookups after it carry no bounds check.
+#[inline]
+fn index_mask(x: &[Vec4]) -> usize {
+    assert!(
+        x.len().is_power_of_two() && x.len() <= OUTER as usize,
+        "the working copy's length is a power of two"
+    );
+    x.len() - 1
 }
 
 /// Area-weighted vertex normals (unit, or zero where every face around is degenerate).
@@ -192,9 +220,9 @@ struct Kernel {
     inv_2ss2: f32,
 }
 
-/// Candidates weighed side by side, one per lane of a 4-wide vector; the candidate lists
-/// are padded to whole groups.
-const LANES: usize = 4;
+/// Candidates weighed side by side: one group fills the eight lanes of an AVX vector, or
+/// two 4-wide vectors where AVX2 is missing. The candidate lists are padded to whole groups.
+const LANES: usize = 8;
 
 /// The padding's position: far outside any ball, yet its squared distance still finite in
 /// single precision.
@@ -207,17 +235,16 @@ const FAR: f32 = 1e18;
 /// IEEE arithmetic, so it is deterministic on every platform, and branch-free, in vector
 /// operations; only 2^k is put together lane by lane (the compiler still keeps it in the
 /// register). The weights need nowhere near libm's precision, and libm's `exp` was 45 % of
-/// the filter's time on igea (perf).
+/// the filter's time on igea (perf). [`avx2::exp_neg8`] does the same operations in the
+/// same order on eight lanes, so both give the same bits.
 #[inline]
 fn exp_neg4(x: Vec4) -> Vec4 {
-    // 1.5·2²³: the sum leaves 2²² + k in the mantissa bits.
-    const ROUND: f32 = 12_582_912.0;
     let y = x * std::f32::consts::LOG2_E;
     // Also false for NaN.
     let normal = y.cmpge(Vec4::splat(-126.0));
     let y = Vec4::select(normal, y, Vec4::splat(-126.0));
-    let shifted = y + ROUND;
-    let k = shifted - ROUND;
+    let shifted = y + EXP_ROUND;
+    let k = shifted - EXP_ROUND;
     let r = (y - k) * std::f32::consts::LN_2;
     let p = Vec4::ONE
         + r * (Vec4::ONE
@@ -233,61 +260,198 @@ fn exp_neg4(x: Vec4) -> Vec4 {
     Vec4::select(normal, p * scale, Vec4::ZERO)
 }
 
-/// Fleishman's DenoisePoint: the move along the normal (`None` when the vertex cannot
-/// move), the number of neighbours inside the ball, and how many of them are in the
-/// outermost ring searched (many there means the ball probably reaches beyond the rings).
-///
-/// Written for the vector unit: candidates go four at a time (their offsets loaded as
-/// four vectors and transposed, so that each coordinate fills one vector). A group with a
-/// candidate inside the ball computes all four weights and zeroes those outside (no
-/// compaction); a group wholly outside skips them, and since the rings list the ball's
-/// candidates first, that is most groups after the first few. Each lane keeps its own
-/// sums, added up in a fixed order at the end, so the result does not depend on the
-/// thread count.
-#[inline]
-fn denoise_vertex(
-    x: &[Vec4],
-    i: usize,
-    n: Vec3A,
-    candidates: &[u32],
-    k: Kernel,
-) -> (Option<Vec3A>, u32, u32) {
-    if n == Vec3A::ZERO {
-        return (None, 0, 0);
+/// 1.5·2²³: y + EXP_ROUND leaves 2²² + round(y) in the mantissa bits.
+const EXP_ROUND: f32 = 12_582_912.0;
+
+/// What [`denoise_vertex`] sums over a vertex's candidates: per lane Σ w·h and Σ w, the
+/// neighbours inside the ball, and how many of them came from the outermost ring.
+struct LaneSums {
+    wh: [f32; LANES],
+    w: [f32; LANES],
+    inside: u32,
+    outer: u32,
+}
+
+impl LaneSums {
+    /// The lanes added up in a fixed order, so that the result depends neither on the
+    /// thread count nor on which kernel ran; the move along `n`, or `None` when the
+    /// weights vanished.
+    fn moved(&self, n: Vec3A) -> Option<Vec3A> {
+        let add =
+            |l: &[f32; LANES]| ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]));
+        let (wh, w) = (add(&self.wh), add(&self.w));
+        (w > 0.0 && wh.is_finite()).then(|| n * -(wh / w))
     }
-    let v = x[i];
+}
+
+/// Which lanes of a group hold a candidate of the outermost ring (bit l for lane l).
+#[inline]
+fn outer_bits(ids: &[u32]) -> u32 {
+    (0..LANES).fold(0, |m, l| m | (ids[l] >> 31) << l)
+}
+
+/// Fleishman's DenoisePoint (the sums; [`LaneSums::moved`] gives the move), on 4-wide
+/// vectors, each group as two halves.
+///
+/// Written for the vector unit: a group's offsets are loaded as vectors and transposed, so
+/// that each coordinate fills one vector. A group with a candidate inside the ball
+/// computes all its weights and zeroes those outside (no compaction); a group wholly
+/// outside skips them, and since the rings list the ball's candidates first, that is most
+/// groups after the first two. Each lane keeps its own sums.
+#[inline]
+fn denoise_vertex(x: &[Vec4], v: Vec4, n: Vec3A, candidates: &[u32], k: Kernel) -> LaneSums {
+    let mask = index_mask(x);
     let (nx, ny, nz) = (Vec4::splat(n.x), Vec4::splat(n.y), Vec4::splat(n.z));
     let (radius_sq, inv_2sc2, inv_2ss2) = (
         Vec4::splat(k.radius_sq),
         Vec4::splat(k.inv_2sc2),
         Vec4::splat(k.inv_2ss2),
     );
-    let (mut sum_wh, mut sum_w) = (Vec4::ZERO, Vec4::ZERO);
+    let mut sum_wh = [Vec4::ZERO; 2];
+    let mut sum_w = [Vec4::ZERO; 2];
     let (mut inside, mut outer) = (0u32, 0u32);
     for ids in candidates.chunks_exact(LANES) {
-        let at = |l: usize| x[(ids[l] & !OUTER) as usize];
-        let d = Mat4::from_cols(v - at(0), v - at(1), v - at(2), v - at(3)).transpose();
-        let (dx, dy, dz) = (d.x_axis, d.y_axis, d.z_axis);
-        let t2 = dx * dx + dy * dy + dz * dz;
-        let hit = t2.cmplt(radius_sq);
-        let bits = hit.bitmask();
+        let half = |o: usize| {
+            let at = |l: usize| v - x[ids[o + l] as usize & mask];
+            let d = Mat4::from_cols(at(0), at(1), at(2), at(3)).transpose();
+            let t2 = d.x_axis * d.x_axis + d.y_axis * d.y_axis + d.z_axis * d.z_axis;
+            (d, t2, t2.cmplt(radius_sq))
+        };
+        let halves = [half(0), half(4)];
+        let bits = halves[0].2.bitmask() | halves[1].2.bitmask() << 4;
         if bits == 0 {
             // Those inside the ball come first: the last groups usually lie wholly outside.
             continue;
         }
-        let h = nx * dx + ny * dy + nz * dz;
-        let w = Vec4::select(hit, exp_neg4(-t2 * inv_2sc2 - h * h * inv_2ss2), Vec4::ZERO);
-        sum_wh += w * h;
-        sum_w += w;
+        for (s, (d, t2, hit)) in halves.into_iter().enumerate() {
+            let h = nx * d.x_axis + ny * d.y_axis + nz * d.z_axis;
+            let w = Vec4::select(hit, exp_neg4(-t2 * inv_2sc2 - h * h * inv_2ss2), Vec4::ZERO);
+            sum_wh[s] += w * h;
+            sum_w[s] += w;
+        }
         inside += bits.count_ones();
-        let from_outer = (0..LANES).fold(0, |m, l| m | (ids[l] >> 31) << l);
-        outer += (bits & from_outer).count_ones();
+        outer += (bits & outer_bits(ids)).count_ones();
     }
-    let (wh, w) = (sum_wh.to_array(), sum_w.to_array());
-    let wh = (wh[0] + wh[1]) + (wh[2] + wh[3]);
-    let w = (w[0] + w[1]) + (w[2] + w[3]);
-    let moved = (w > 0.0 && wh.is_finite()).then(|| n * -(wh / w));
-    (moved, inside, outer)
+    let lanes = |s: [Vec4; 2]| {
+        let (a, b) = (s[0].to_array(), s[1].to_array());
+        [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
+    };
+    LaneSums {
+        wh: lanes(sum_wh),
+        w: lanes(sum_w),
+        inside,
+        outer,
+    }
+}
+
+/// The same filter on 8-wide AVX vectors, operation for operation as [`denoise_vertex`]
+/// (no fused multiply-add), so that it gives the same bits, in about two thirds of the
+/// time on igea (docs/smoothing.md, "Speed").
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{Kernel, LANES, LaneSums, index_mask, outer_bits};
+    use glam::{Vec3A, Vec4};
+    use std::arch::x86_64::*;
+
+    /// Whether this processor can run [`denoise_vertex`].
+    pub(super) fn available() -> bool {
+        std::is_x86_feature_detected!("avx2")
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn lanes(v: __m256) -> [f32; LANES] {
+        let lo = Vec4::from(_mm256_castps256_ps128(v)).to_array();
+        let hi = Vec4::from(_mm256_extractf128_ps::<1>(v)).to_array();
+        [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]]
+    }
+
+    /// [`super::exp_neg4`] on eight lanes.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn exp_neg8(x: __m256) -> __m256 {
+        let c = _mm256_set1_ps;
+        let y = _mm256_mul_ps(x, c(std::f32::consts::LOG2_E));
+        let normal = _mm256_cmp_ps::<_CMP_GE_OQ>(y, c(-126.0));
+        let y = _mm256_blendv_ps(c(-126.0), y, normal);
+        let shifted = _mm256_add_ps(y, c(super::EXP_ROUND));
+        let k = _mm256_sub_ps(shifted, c(super::EXP_ROUND));
+        let r = _mm256_mul_ps(_mm256_sub_ps(y, k), c(std::f32::consts::LN_2));
+        let step = |coefficient: f32, inner: __m256| {
+            _mm256_add_ps(c(coefficient), _mm256_mul_ps(r, inner))
+        };
+        let p = step(1.0 / 120.0, c(1.0 / 720.0));
+        let p = step(1.0 / 24.0, p);
+        let p = step(1.0 / 6.0, p);
+        let p = step(0.5, p);
+        let p = step(1.0, p);
+        let p = step(1.0, p);
+        let bits = _mm256_add_epi32(_mm256_castps_si256(shifted), _mm256_set1_epi32(127));
+        let scale = _mm256_castsi256_ps(_mm256_slli_epi32::<23>(bits));
+        _mm256_and_ps(normal, _mm256_mul_ps(p, scale))
+    }
+
+    /// [`super::denoise_vertex`] with each group in one vector: lanes 0–3 from the low half
+    /// of each register, 4–7 from the high half, as the two halves there.
+    #[target_feature(enable = "avx2")]
+    pub(super) fn denoise_vertex(
+        x: &[Vec4],
+        v: Vec4,
+        n: Vec3A,
+        candidates: &[u32],
+        k: Kernel,
+    ) -> LaneSums {
+        let mask = index_mask(x);
+        let c = _mm256_set1_ps;
+        let (nx, ny, nz) = (c(n.x), c(n.y), c(n.z));
+        let (radius_sq, inv_2sc2, inv_2ss2) = (c(k.radius_sq), c(k.inv_2sc2), c(k.inv_2ss2));
+        let sign = c(-0.0);
+        let (mut sum_wh, mut sum_w) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+        let (mut inside, mut outer) = (0u32, 0u32);
+        for ids in candidates.chunks_exact(LANES) {
+            let d = |l: usize| __m128::from(v - x[ids[l] as usize & mask]);
+            let r0 = _mm256_set_m128(d(4), d(0));
+            let r1 = _mm256_set_m128(d(5), d(1));
+            let r2 = _mm256_set_m128(d(6), d(2));
+            let r3 = _mm256_set_m128(d(7), d(3));
+            // A 4×4 transpose in each half: rows (x, y, z, w) become one vector per axis.
+            let xy01 = _mm256_unpacklo_ps(r0, r1);
+            let xy23 = _mm256_unpacklo_ps(r2, r3);
+            let zw01 = _mm256_unpackhi_ps(r0, r1);
+            let zw23 = _mm256_unpackhi_ps(r2, r3);
+            let dx = _mm256_shuffle_ps::<0x44>(xy01, xy23);
+            let dy = _mm256_shuffle_ps::<0xEE>(xy01, xy23);
+            let dz = _mm256_shuffle_ps::<0x44>(zw01, zw23);
+            let t2 = _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                _mm256_mul_ps(dz, dz),
+            );
+            let hit = _mm256_cmp_ps::<_CMP_LT_OQ>(t2, radius_sq);
+            let bits = _mm256_movemask_ps(hit) as u32;
+            if bits == 0 {
+                continue;
+            }
+            let h = _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(nx, dx), _mm256_mul_ps(ny, dy)),
+                _mm256_mul_ps(nz, dz),
+            );
+            let arg = _mm256_sub_ps(
+                _mm256_mul_ps(_mm256_xor_ps(sign, t2), inv_2sc2),
+                _mm256_mul_ps(_mm256_mul_ps(h, h), inv_2ss2),
+            );
+            let w = _mm256_and_ps(hit, exp_neg8(arg));
+            sum_wh = _mm256_add_ps(sum_wh, _mm256_mul_ps(w, h));
+            sum_w = _mm256_add_ps(sum_w, w);
+            inside += bits.count_ones();
+            outer += (bits & outer_bits(ids)).count_ones();
+        }
+        LaneSums {
+            wh: lanes(sum_wh),
+            w: lanes(sum_w),
+            inside,
+            outer,
+        }
+    }
 }
 
 /// The ρ-ball's radius in model units: `radius`, else 2σ_c (Fleishman et al.). `unit`
@@ -331,14 +495,16 @@ pub(super) fn run(
     // The bounding box's centre: single-precision differences are then as precise as the
     // scan's extent allows, wherever the scanner put its origin.
     let centre = bounding_box_of(positions).map_or(DVec3::ZERO, |(lo, hi)| (lo + hi) / 2.0);
-    let mut local = Vec::with_capacity(n);
+    let mut local = WorkingCopy::new(n);
     let mut faces = Vec::with_capacity(topology.triangle_count());
     let mut normals = vec![Vec3A::ZERO; n];
     let mut next = vec![DVec3::ZERO; n];
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = avx2::available();
     for _ in 0..iterations {
-        local_positions(positions, centre, &mut local);
-        vertex_normals(topology, &local, &mut faces, &mut normals);
-        let (x, xl) = (&*positions, &*local);
+        local.update(positions, centre);
+        vertex_normals(topology, &local.x, &mut faces, &mut normals);
+        let (x, xl) = (&*positions, &*local.x);
         let (empty, inside, outer): (u64, u64, u64) = next
             .par_chunks_mut(CHUNK)
             .enumerate()
@@ -350,11 +516,24 @@ pub(super) fn run(
                     if !graph.moves(i) {
                         continue;
                     }
-                    let (moved, used, from_outer) =
-                        denoise_vertex(xl, i, normals[i], rings.of(i), kernel);
-                    inside += u64::from(used);
-                    outer += u64::from(from_outer);
-                    match moved {
+                    let n = normals[i];
+                    if n == Vec3A::ZERO {
+                        empty += 1;
+                        continue;
+                    }
+                    let (v, candidates) = (xl[i], rings.of(i));
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `avx2` says this processor has AVX2.
+                    let sums = if avx2 {
+                        unsafe { avx2::denoise_vertex(xl, v, n, candidates, kernel) }
+                    } else {
+                        denoise_vertex(xl, v, n, candidates, kernel)
+                    };
+                    #[cfg(not(target_arch = "x86_64"))]
+                    let sums = denoise_vertex(xl, v, n, candidates, kernel);
+                    inside += u64::from(sums.inside);
+                    outer += u64::from(sums.outer);
+                    match sums.moved(n) {
                         Some(moved) => *p += moved.as_dvec3(),
                         None => empty += 1,
                     }
@@ -393,6 +572,97 @@ mod tests {
         }
         let edge = Vec4::new(0.0, f32::NEG_INFINITY, f32::NAN, -1e30);
         assert_eq!(exp_neg4(edge).to_array(), [1.0, 0.0, 0.0, 0.0]);
+    }
+
+    /// The AVX2 kernel gives the same bits as the portable one: the exponential on every
+    /// lane, and every vertex's sums on a noisy torus, through three passes' worth of
+    /// positions moving (so that groups change between inside and outside the ball).
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_kernel_matches_the_portable_one() {
+        use std::arch::x86_64::_mm256_loadu_ps;
+        // SAFETY (each call below): AVX2 is available, checked here.
+        let exp8 =
+            |x: &[f32; 8]| unsafe { avx2::lanes(avx2::exp_neg8(_mm256_loadu_ps(x.as_ptr()))) };
+        if !avx2::available() {
+            eprintln!("no AVX2 here: nothing to compare");
+            return;
+        }
+        let mut x = 0.5f32;
+        while x > -130.0 {
+            let xs: [f32; 8] = std::array::from_fn(|l| x - 0.07 * l as f32);
+            let lo = exp_neg4(Vec4::from_slice(&xs[..4])).to_array();
+            let hi = exp_neg4(Vec4::from_slice(&xs[4..])).to_array();
+            let got = exp8(&xs);
+            let want: Vec<u32> = lo.iter().chain(&hi).map(|f| f.to_bits()).collect();
+            assert_eq!(got.map(f32::to_bits).to_vec(), want, "exp at {x}");
+            x -= 0.013;
+        }
+        let edge = [
+            0.0,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -1e30,
+            -87.5,
+            -126.0,
+            1e-30,
+            -0.0,
+        ];
+        let got = exp8(&edge);
+        let lo = exp_neg4(Vec4::from_slice(&edge[..4])).to_array();
+        let hi = exp_neg4(Vec4::from_slice(&edge[4..])).to_array();
+        assert_eq!(got.map(f32::to_bits)[..4], lo.map(f32::to_bits));
+        assert_eq!(got.map(f32::to_bits)[4..], hi.map(f32::to_bits));
+
+        let mut mesh = crate::mesh::shapes::torus(2.0, 0.7, 90, 40);
+        let topology = mesh.topology();
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for p in &mut mesh.positions {
+            let mut r = || {
+                state = state
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1);
+                (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            *p += DVec3::new(r(), r(), r()) * 0.03;
+        }
+        let radius = 0.15;
+        let rings = Rings::new(&topology, 3, &mesh.positions, radius);
+        let kernel = Kernel {
+            radius_sq: (radius * radius) as f32,
+            inv_2sc2: 1.0 / (2.0 * 0.075f32 * 0.075),
+            inv_2ss2: 1.0 / (2.0 * 0.02f32 * 0.02),
+        };
+        let n = mesh.positions.len();
+        let mut local = WorkingCopy::new(n);
+        let (mut faces, mut normals) = (Vec::new(), vec![Vec3A::ZERO; n]);
+        let mut compared = 0;
+        for pass in 0..3 {
+            local.update(&mesh.positions, DVec3::ZERO);
+            vertex_normals(&topology, &local.x, &mut faces, &mut normals);
+            for (i, &normal) in normals.iter().enumerate() {
+                let (v, c) = (local.x[i], rings.of(i));
+                let a = denoise_vertex(&local.x, v, normal, c, kernel);
+                // SAFETY: AVX2 is available (checked above).
+                let b = unsafe { avx2::denoise_vertex(&local.x, v, normal, c, kernel) };
+                assert_eq!(
+                    a.wh.map(f32::to_bits),
+                    b.wh.map(f32::to_bits),
+                    "pass {pass}, {i}"
+                );
+                assert_eq!(
+                    a.w.map(f32::to_bits),
+                    b.w.map(f32::to_bits),
+                    "pass {pass}, {i}"
+                );
+                assert_eq!((a.inside, a.outer), (b.inside, b.outer));
+                compared += usize::from(a.inside > 0);
+                if let Some(m) = a.moved(normal) {
+                    mesh.positions[i] += m.as_dvec3();
+                }
+            }
+        }
+        assert!(compared > 2 * n, "the ball held neighbours: {compared}");
     }
 
     /// A vertex's list without the padding and the flag: (vertex, from the outermost ring).
