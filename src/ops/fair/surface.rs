@@ -48,7 +48,10 @@ pub struct VertexCurvature {
 /// uses signs relative to a local orientation.
 pub fn curvature(a: DVec3, ring: &[DVec3]) -> VertexCurvature {
     let n = ring.len();
-    let mut bmat = DMat3::ZERO;
+    // B = Σ B_i = (Σ b_i²)·I − Σ b_i b_iᵀ, summed as the scalar and the six distinct
+    // entries of the symmetric part.
+    let mut sum_b2 = 0.0;
+    let (mut bxx, mut bxy, mut bxz, mut byy, mut byz, mut bzz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     // b' = Σ B_i x_i and c' = Σ x_iᵀ B_i x_i with x_i = a_i − a (the substitutions of
     // §3.6.1 in coordinates centred on a, where `â = B·0 − b' = −b'`).
     let mut bvec = DVec3::ZERO;
@@ -61,9 +64,19 @@ pub fn curvature(a: DVec3, ring: &[DVec3]) -> VertexCurvature {
         let bx = b2 * xi - bi * bi.dot(xi);
         bvec += bx;
         c += xi.dot(bx);
-        bmat += DMat3::from_diagonal(DVec3::splat(b2))
-            - DMat3::from_cols(bi * bi.x, bi * bi.y, bi * bi.z);
+        sum_b2 += b2;
+        bxx += bi.x * bi.x;
+        bxy += bi.x * bi.y;
+        bxz += bi.x * bi.z;
+        byy += bi.y * bi.y;
+        byz += bi.y * bi.z;
+        bzz += bi.z * bi.z;
     }
+    let bmat = DMat3::from_cols(
+        DVec3::new(sum_b2 - bxx, -bxy, -bxz),
+        DVec3::new(-bxy, sum_b2 - byy, -byz),
+        DVec3::new(-bxz, -byz, sum_b2 - bzz),
+    );
     // c' = 4 Σ A_i²: zero only when every fan triangle has zero area.
     if !positive(c) || !c.is_finite() {
         return VertexCurvature::default();
@@ -117,17 +130,20 @@ pub fn side(a: DVec3, ring: &[DVec3], h: DVec3) -> f64 {
         let r1 = ring[(i + 1) % n] - a; // r_i1
         let normal = r2.cross(r1);
         let nn = normal.length_squared();
-        let scale = r1.length_squared() * r2.length_squared();
+        let (r11, r12, r22) = (r1.length_squared(), r1.dot(r2), r2.length_squared());
+        let scale = r11 * r22;
         if !positive(nn - 1e-24 * scale) || !positive(scale) {
             continue; // zero-area triangle: no plane
         }
         let hn = h.dot(normal);
-        let p = h - normal * (hn / nn); // (3.23)
-        // (3.25): [r1·r1 r1·r2; r2·r1 r2·r2] [β γ]ᵀ = [r1·p r2·p]ᵀ; det = |r1 × r2|².
-        let (r11, r12, r22) = (r1.length_squared(), r1.dot(r2), r2.length_squared());
-        let (q1, q2) = (r1.dot(p), r2.dot(p));
-        let beta = (q1 * r22 - q2 * r12) / nn;
-        let gamma = (q2 * r11 - q1 * r12) / nn;
+        // (3.23) projects h into the plane: p = h − N (h·N)/|N|². (3.25) solves
+        // [r1·r1 r1·r2; r2·r1 r2·r2] [β γ]ᵀ = [r1·p r2·p]ᵀ with det = |r1 × r2|² = |N|².
+        // r1 and r2 are orthogonal to N, so r1·p = r1·h and r2·p = r2·h: p itself is not
+        // needed. β and γ are kept multiplied by det > 0, which changes neither their signs
+        // nor the relative tolerance below (and saves the divisions).
+        let (q1, q2) = (r1.dot(h), r2.dot(h));
+        let beta = q1 * r22 - q2 * r12;
+        let gamma = q2 * r11 - q1 * r12;
         let tol = 1e-9 * (beta.abs() + gamma.abs());
         let pos = |x: f64| x > tol;
         let zero = |x: f64| x.abs() <= tol;
