@@ -8,6 +8,7 @@ pub mod model;
 pub mod mtl;
 pub mod obj;
 pub mod ply;
+pub mod reorder;
 pub mod shapes;
 pub mod summary;
 pub mod texture;
