@@ -140,6 +140,25 @@ fn ply_input_is_processed() {
     assert!(tmp.path().join("bun_zipper_res4.obj").is_file());
 }
 
+/// A recipe without `decimate` keeps the file's numbering (the mesh is renumbered for speed
+/// only before a decimation, whose output is numbered afresh anyway): the output's vertices
+/// correspond one for one to the input's.
+#[test]
+fn a_recipe_without_decimate_keeps_the_vertex_order() {
+    let tmp = tempfile::tempdir().unwrap();
+    let input = Path::new(DATA).join("untextured/stanford_bunny/bun_zipper_res4.ply");
+    let (code, stderr) = process(&input, tmp.path());
+    assert_eq!(code, 0, "{stderr}");
+    let options = scanmill::mesh::LoadOptions::default();
+    let (before, _) = scanmill::mesh::load(&input, &options).unwrap();
+    let output = tmp.path().join("bun_zipper_res4.obj");
+    let (after, _) = scanmill::mesh::load(&output, &options).unwrap();
+    assert_eq!(before.positions.len(), after.positions.len());
+    for (i, (a, b)) in before.positions.iter().zip(&after.positions).enumerate() {
+        assert!(a.distance(*b) < 1e-6, "vertex {i}: {a} became {b}");
+    }
+}
+
 /// Writes the named files into a fresh folder and returns (folder, the first file).
 fn scan(files: &[(&str, &[u8])]) -> (tempfile::TempDir, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
