@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run --release --example decimate -- ../shared/data/textured/facefuns_di3d_face/example.obj \
-//!     --subdivide 2 --target 26000 [--method edge-collapse] [--meshopt] [--audit] [--quality] \
+//!     --subdivide 2 --target 26000 [--method edge-collapse] [--meshopt] [--renumber] [--audit] [--quality] \
 //!     [--seam-fix] [--texture IMG] [--params 'texture_weight = 1e-17'] [--out out.obj]
 //! ```
 
@@ -50,6 +50,10 @@ struct Args {
     /// Texture image for the colour deviation when the mesh names none (pizza, facefuns).
     #[arg(long)]
     texture: Option<PathBuf>,
+    /// Renumber the input for locality first, as `scanmill process` does before a
+    /// recipe that decimates (`Mesh::reorder_for_locality`).
+    #[arg(long)]
+    renumber: bool,
 }
 
 /// An RGB image for bilinear lookups at OBJ texture coordinates (origin bottom left,
@@ -384,6 +388,9 @@ fn main() {
         mesh = subdivide(&mesh);
     }
     mesh.triangle_origins.clear();
+    if args.renumber {
+        mesh.reorder_for_locality();
+    }
     eprintln!(
         "loaded {} triangles, {} vertices, {} wedges in {:.2} s",
         mesh.triangles.len(),
