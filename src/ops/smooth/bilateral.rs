@@ -50,16 +50,31 @@ pub(super) struct BilateralOutcome {
 
 /// Each vertex's order-k neighbourhood without the vertex itself (CSR), those inside the
 /// ρ-ball when the rings were built first, padded to whole groups of [`LANES`] with the
-/// index n (a point far outside every ball). Candidates of the outermost ring carry
-/// [`OUTER`]: one of them inside the ρ-ball means the ball may reach beyond the rings.
+/// index n (a point far outside every ball). Each group has a byte saying which of its
+/// candidates come from the outermost ring: one of them inside the ρ-ball means the ball
+/// may reach beyond the rings.
 #[derive(Debug, Clone, Default)]
 pub struct Rings {
     offsets: Vec<u32>,
     list: Vec<u32>,
+    /// Per group of [`LANES`] candidates, bit l: lane l is from the outermost ring.
+    outer: Vec<u8>,
+    /// The vertex count n: every index in `list` is at most n.
+    vertices: usize,
 }
 
-/// Flag bit of a candidate from the outermost ring.
+/// Flag bit of a candidate from the outermost ring, while the lists are built.
 const OUTER: u32 = 1 << 31;
+
+/// One vertex's candidates ([`Rings::of`]).
+#[derive(Clone, Copy)]
+struct Candidates<'a> {
+    /// Vertex indices, whole groups of [`LANES`], each at most `bound`.
+    ids: &'a [u32],
+    /// One byte per group: bit l for a candidate of the outermost ring in lane l.
+    outer: &'a [u8],
+    bound: usize,
+}
 
 impl Rings {
     /// `positions` and `radius` (the ρ-ball's, model units) order each list: the candidates
@@ -72,13 +87,14 @@ impl Rings {
         assert!(n < OUTER as usize, "too many vertices for the ring lists");
         let block = n.div_ceil(4 * rayon::current_num_threads()).max(1024);
         // Blocks of vertices in parallel, each with its own marks; concatenated in order.
-        let parts: Vec<(Vec<u32>, Vec<u32>)> = (0..n.div_ceil(block))
+        let parts: Vec<(Vec<u32>, Vec<u32>, Vec<u8>)> = (0..n.div_ceil(block))
             .into_par_iter()
             .map(|b| {
                 let (first, last) = (b * block, ((b + 1) * block).min(n));
                 // mark[j] == i + 1: j already listed for vertex i (zeroed pages are free).
                 let mut mark = vec![0u32; n];
                 let (mut counts, mut list) = (Vec::with_capacity(last - first), Vec::new());
+                let mut outer = Vec::new();
                 let (mut by_ball, mut outside): (Vec<u32>, Vec<u32>) = (Vec::new(), Vec::new());
                 for i in first..last {
                     let stamp = i as u32 + 1;
@@ -122,28 +138,49 @@ impl Rings {
                     let padded = (list.len() - start).next_multiple_of(LANES);
                     list.resize(start + padded, n as u32);
                     counts.push(padded as u32);
+                    // The flags move to a byte per group, so that the lists hold plain
+                    // indices the filter can load without masking them.
+                    for group in list[start..].chunks_exact_mut(LANES) {
+                        outer.push(
+                            group
+                                .iter()
+                                .rev()
+                                .fold(0u8, |m, &j| m << 1 | u8::from(j & OUTER != 0)),
+                        );
+                        for j in group {
+                            *j &= !OUTER;
+                        }
+                    }
                 }
-                (counts, list)
+                (counts, list, outer)
             })
             .collect();
         let mut rings = Rings {
             offsets: Vec::with_capacity(n + 1),
             list: Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum()),
+            outer: Vec::with_capacity(parts.iter().map(|p| p.2.len()).sum()),
+            vertices: n,
         };
         rings.offsets.push(0);
-        for (counts, list) in parts {
+        for (counts, list, outer) in parts {
             for c in counts {
                 let last = *rings.offsets.last().expect("starts with 0");
                 rings.offsets.push(last + c);
             }
             rings.list.extend(list);
+            rings.outer.extend(outer);
         }
         rings
     }
 
     #[inline]
-    fn of(&self, i: usize) -> &[u32] {
-        &self.list[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    fn of(&self, i: usize) -> Candidates<'_> {
+        let (first, last) = (self.offsets[i] as usize, self.offsets[i + 1] as usize);
+        Candidates {
+            ids: &self.list[first..last],
+            outer: &self.outer[first / LANES..last / LANES],
+            bound: self.vertices,
+        }
     }
 }
 
@@ -151,8 +188,9 @@ impl Rings {
 /// so that differences of nearby vertices keep their precision (a scan far from the origin
 /// loses none), one 16-byte vector each (w = 0). Its length is a power of two above the
 /// vertex count, the rest filled with a point far away (the padding of the candidate lists
-/// refers to index n): then `index & (len − 1)` is in bounds by construction, and the
-/// inner loops need no bounds check (a quarter of the instructions of a group otherwise).
+/// refers to index n). The normals index it with `index & (len − 1)`, in bounds by
+/// construction, so that their loops need no bounds check; the AVX2 filter, whose
+/// candidates are all at most n, loads them unchecked after one assertion per vertex.
 struct WorkingCopy {
     x: Vec<Vec4>,
 }
@@ -177,13 +215,13 @@ impl WorkingCopy {
     }
 }
 
-/// The mask that keeps a candidate index inside the working copy `x` (see [`WorkingCopy`]):
-/// `len − 1`, which also clears [`OUTER`]. The compiler sees `i & (len − 1) < len`, so the
-/// lookups after it carry no bounds check.
+/// The mask that keeps a vertex index inside the working copy `x` (see [`WorkingCopy`]):
+/// `len − 1`. The compiler sees `i & (len − 1) < len`, so the lookups after it carry no
+/// bounds check.
 #[inline]
 fn index_mask(x: &[Vec4]) -> usize {
     assert!(
-        x.len().is_power_of_two() && x.len() <= OUTER as usize,
+        x.len().is_power_of_two(),
         "the working copy's length is a power of two"
     );
     x.len() - 1
@@ -304,12 +342,14 @@ fn exp_neg4(x: Vec4) -> Vec4 {
     let shifted = y + EXP_ROUND;
     let k = shifted - EXP_ROUND;
     let r = (y - k) * std::f32::consts::LN_2;
-    let p = Vec4::ONE
-        + r * (Vec4::ONE
-            + r * (Vec4::splat(0.5)
-                + r * (Vec4::splat(1.0 / 6.0)
-                    + r * (Vec4::splat(1.0 / 24.0)
-                        + r * (Vec4::splat(1.0 / 120.0) + r * (1.0 / 720.0))))));
+    // Horner's scheme, each step one fused multiply-add.
+    let step = |coefficient: f32, inner: Vec4| r.mul_add(inner, Vec4::splat(coefficient));
+    let p = step(1.0 / 120.0, Vec4::splat(1.0 / 720.0));
+    let p = step(1.0 / 24.0, p);
+    let p = step(1.0 / 6.0, p);
+    let p = step(0.5, p);
+    let p = step(1.0, p);
+    let p = step(1.0, p);
     // 2^k: the low 9 bits of (2²² + k) + 127 are k + 127 ∈ [1, 127] (k ∈ [−126, 0]);
     // shifting them into the exponent field drops everything above, and the sign bit is 0.
     let s = shifted.to_array();
@@ -321,31 +361,30 @@ fn exp_neg4(x: Vec4) -> Vec4 {
 /// 1.5·2²³: y + EXP_ROUND leaves 2²² + round(y) in the mantissa bits.
 const EXP_ROUND: f32 = 12_582_912.0;
 
-/// What [`denoise_vertex`] sums over a vertex's candidates: per lane Σ w·h and Σ w, the
-/// neighbours inside the ball, and how many of them came from the outermost ring.
+/// What [`denoise_vertex`] sums over a vertex's candidates: Σ w·h and Σ w, the neighbours
+/// inside the ball, and how many of them came from the outermost ring.
+///
+/// Each kernel keeps one sum per lane and adds the lanes up in the same fixed order,
+/// `((l0 + l1) + (l2 + l3)) + ((l4 + l5) + (l6 + l7))` ([`add_lanes`]), so that the
+/// result depends neither on the thread count nor on which kernel ran.
 struct LaneSums {
-    wh: [f32; LANES],
-    w: [f32; LANES],
+    wh: f32,
+    w: f32,
     inside: u32,
     outer: u32,
 }
 
 impl LaneSums {
-    /// The lanes added up in a fixed order, so that the result depends neither on the
-    /// thread count nor on which kernel ran; the move along `n`, or `None` when the
-    /// weights vanished.
+    /// The move along `n`, or `None` when the weights vanished.
     fn moved(&self, n: Vec3A) -> Option<Vec3A> {
-        let add =
-            |l: &[f32; LANES]| ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]));
-        let (wh, w) = (add(&self.wh), add(&self.w));
-        (w > 0.0 && wh.is_finite()).then(|| n * -(wh / w))
+        (self.w > 0.0 && self.wh.is_finite()).then(|| n * -(self.wh / self.w))
     }
 }
 
-/// Which lanes of a group hold a candidate of the outermost ring (bit l for lane l).
+/// The lanes of a group's sums added up in the order every kernel uses (see [`LaneSums`]).
 #[inline]
-fn outer_bits(ids: &[u32]) -> u32 {
-    (0..LANES).fold(0, |m, l| m | (ids[l] >> 31) << l)
+fn add_lanes(l: [f32; LANES]) -> f32 {
+    ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]))
 }
 
 /// Fleishman's DenoisePoint (the sums; [`LaneSums::moved`] gives the move), on 4-wide
@@ -357,8 +396,7 @@ fn outer_bits(ids: &[u32]) -> u32 {
 /// outside skips them, and since the rings list the ball's candidates first, that is most
 /// groups after the first two. Each lane keeps its own sums.
 #[inline]
-fn denoise_vertex(x: &[Vec4], v: Vec4, n: Vec3A, candidates: &[u32], k: Kernel) -> LaneSums {
-    let mask = index_mask(x);
+fn denoise_vertex(x: &[Vec4], v: Vec4, n: Vec3A, candidates: Candidates, k: Kernel) -> LaneSums {
     let (nx, ny, nz) = (Vec4::splat(n.x), Vec4::splat(n.y), Vec4::splat(n.z));
     let (radius_sq, inv_2sc2, inv_2ss2) = (
         Vec4::splat(k.radius_sq),
@@ -368,11 +406,13 @@ fn denoise_vertex(x: &[Vec4], v: Vec4, n: Vec3A, candidates: &[u32], k: Kernel) 
     let mut sum_wh = [Vec4::ZERO; 2];
     let mut sum_w = [Vec4::ZERO; 2];
     let (mut inside, mut outer) = (0u32, 0u32);
-    for ids in candidates.chunks_exact(LANES) {
+    for (ids, &outer_lanes) in candidates.ids.chunks_exact(LANES).zip(candidates.outer) {
         let half = |o: usize| {
-            let at = |l: usize| v - x[ids[o + l] as usize & mask];
+            let at = |l: usize| v - x[ids[o + l] as usize];
             let d = Mat4::from_cols(at(0), at(1), at(2), at(3)).transpose();
-            let t2 = d.x_axis * d.x_axis + d.y_axis * d.y_axis + d.z_axis * d.z_axis;
+            let t2 = d
+                .z_axis
+                .mul_add(d.z_axis, d.y_axis.mul_add(d.y_axis, d.x_axis * d.x_axis));
             (d, t2, t2.cmplt(radius_sq))
         };
         let halves = [half(0), half(4)];
@@ -382,51 +422,75 @@ fn denoise_vertex(x: &[Vec4], v: Vec4, n: Vec3A, candidates: &[u32], k: Kernel) 
             continue;
         }
         for (s, (d, t2, hit)) in halves.into_iter().enumerate() {
-            let h = nx * d.x_axis + ny * d.y_axis + nz * d.z_axis;
-            let w = Vec4::select(hit, exp_neg4(-t2 * inv_2sc2 - h * h * inv_2ss2), Vec4::ZERO);
-            sum_wh[s] += w * h;
+            let h = nz.mul_add(d.z_axis, ny.mul_add(d.y_axis, nx * d.x_axis));
+            let arg = (-(h * h)).mul_add(inv_2ss2, -t2 * inv_2sc2);
+            let w = Vec4::select(hit, exp_neg4(arg), Vec4::ZERO);
+            sum_wh[s] = w.mul_add(h, sum_wh[s]);
             sum_w[s] += w;
         }
         inside += bits.count_ones();
-        outer += (bits & outer_bits(ids)).count_ones();
+        outer += (bits & u32::from(outer_lanes)).count_ones();
     }
     let lanes = |s: [Vec4; 2]| {
         let (a, b) = (s[0].to_array(), s[1].to_array());
         [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
     };
     LaneSums {
-        wh: lanes(sum_wh),
-        w: lanes(sum_w),
+        wh: add_lanes(lanes(sum_wh)),
+        w: add_lanes(lanes(sum_w)),
         inside,
         outer,
     }
 }
 
-/// The same filter on 8-wide AVX vectors, operation for operation as [`denoise_vertex`]
-/// (no fused multiply-add), so that it gives the same bits, in about two thirds of the
-/// time on igea (docs/smoothing.md, "Speed").
+/// The same filter on 8-wide AVX vectors with fused multiply-adds (AVX2 and FMA),
+/// operation for operation as [`denoise_vertex`], so that it gives the same bits. The
+/// portable kernel fuses in the same places (`mul_add`: one rounding, exact in IEEE
+/// arithmetic on every platform, in hardware where the processor has it), so its bits do
+/// not depend on the processor either. This kernel takes about two thirds of the portable
+/// one's time on igea, and the fused operations a further tenth (docs/smoothing.md,
+/// "Speed").
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Kernel, LANES, LaneSums, index_mask, outer_bits};
+    use super::{Candidates, Kernel, LANES, LaneSums};
     use glam::{Vec3A, Vec4};
     use std::arch::x86_64::*;
 
-    /// Whether this processor can run [`denoise_vertex`].
+    /// Whether this processor can run [`denoise_vertex`] (it needs both).
     pub(super) fn available() -> bool {
-        std::is_x86_feature_detected!("avx2")
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
     }
 
     #[inline]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
+    #[cfg(test)]
     pub(super) fn lanes(v: __m256) -> [f32; LANES] {
         let lo = Vec4::from(_mm256_castps256_ps128(v)).to_array();
         let hi = Vec4::from(_mm256_extractf128_ps::<1>(v)).to_array();
         [lo[0], lo[1], lo[2], lo[3], hi[0], hi[1], hi[2], hi[3]]
     }
 
+    /// [`super::add_lanes`] of both sums at once, adding the same pairs in the same
+    /// order: each `hadd` adds neighbouring lanes, and addition is commutative bit for
+    /// bit, so `l1 + l0` is `l0 + l1`.
+    #[inline]
+    #[target_feature(enable = "avx2,fma")]
+    fn add_lanes(wh: __m256, w: __m256) -> (f32, f32) {
+        // (wh0+wh1, wh2+wh3, w0+w1, w2+w3 | wh4+wh5, wh6+wh7, w4+w5, w6+w7)
+        let pairs = _mm256_hadd_ps(wh, w);
+        // (wh0123, w0123, … | wh4567, w4567, …)
+        let quads = _mm256_hadd_ps(pairs, pairs);
+        let total = _mm_add_ps(
+            _mm256_castps256_ps128(quads),
+            _mm256_extractf128_ps::<1>(quads),
+        );
+        let total = Vec4::from(total);
+        (total.x, total.y)
+    }
+
     /// [`super::exp_neg4`] on eight lanes.
     #[inline]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     pub(super) fn exp_neg8(x: __m256) -> __m256 {
         let c = _mm256_set1_ps;
         let y = _mm256_mul_ps(x, c(std::f32::consts::LOG2_E));
@@ -435,9 +499,7 @@ mod avx2 {
         let shifted = _mm256_add_ps(y, c(super::EXP_ROUND));
         let k = _mm256_sub_ps(shifted, c(super::EXP_ROUND));
         let r = _mm256_mul_ps(_mm256_sub_ps(y, k), c(std::f32::consts::LN_2));
-        let step = |coefficient: f32, inner: __m256| {
-            _mm256_add_ps(c(coefficient), _mm256_mul_ps(r, inner))
-        };
+        let step = |coefficient: f32, inner: __m256| _mm256_fmadd_ps(r, inner, c(coefficient));
         let p = step(1.0 / 120.0, c(1.0 / 720.0));
         let p = step(1.0 / 24.0, p);
         let p = step(1.0 / 6.0, p);
@@ -451,23 +513,30 @@ mod avx2 {
 
     /// [`super::denoise_vertex`] with each group in one vector: lanes 0–3 from the low half
     /// of each register, 4–7 from the high half, as the two halves there.
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     pub(super) fn denoise_vertex(
         x: &[Vec4],
         v: Vec4,
         n: Vec3A,
-        candidates: &[u32],
+        candidates: Candidates,
         k: Kernel,
     ) -> LaneSums {
-        let mask = index_mask(x);
+        // Every candidate is at most `bound` (Rings::new), so below `x.len()`: the loads
+        // below need no bounds check (with one, or a mask, they were a third of a group's
+        // instructions).
+        assert!(
+            candidates.bound < x.len(),
+            "the working copy covers the rings"
+        );
         let c = _mm256_set1_ps;
         let (nx, ny, nz) = (c(n.x), c(n.y), c(n.z));
         let (radius_sq, inv_2sc2, inv_2ss2) = (c(k.radius_sq), c(k.inv_2sc2), c(k.inv_2ss2));
         let sign = c(-0.0);
         let (mut sum_wh, mut sum_w) = (_mm256_setzero_ps(), _mm256_setzero_ps());
         let (mut inside, mut outer) = (0u32, 0u32);
-        for ids in candidates.chunks_exact(LANES) {
-            let d = |l: usize| __m128::from(v - x[ids[l] as usize & mask]);
+        for (ids, &outer_lanes) in candidates.ids.chunks_exact(LANES).zip(candidates.outer) {
+            // SAFETY: ids[l] ≤ candidates.bound < x.len() (asserted above).
+            let d = |l: usize| __m128::from(v - unsafe { *x.get_unchecked(ids[l] as usize) });
             let r0 = _mm256_set_m128(d(4), d(0));
             let r1 = _mm256_set_m128(d(5), d(1));
             let r2 = _mm256_set_m128(d(6), d(2));
@@ -480,43 +549,39 @@ mod avx2 {
             let dx = _mm256_shuffle_ps::<0x44>(xy01, xy23);
             let dy = _mm256_shuffle_ps::<0xEE>(xy01, xy23);
             let dz = _mm256_shuffle_ps::<0x44>(zw01, zw23);
-            let t2 = _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
-                _mm256_mul_ps(dz, dz),
-            );
+            let t2 = _mm256_fmadd_ps(dz, dz, _mm256_fmadd_ps(dy, dy, _mm256_mul_ps(dx, dx)));
             let hit = _mm256_cmp_ps::<_CMP_LT_OQ>(t2, radius_sq);
             let bits = _mm256_movemask_ps(hit) as u32;
             if bits == 0 {
                 continue;
             }
-            let h = _mm256_add_ps(
-                _mm256_add_ps(_mm256_mul_ps(nx, dx), _mm256_mul_ps(ny, dy)),
-                _mm256_mul_ps(nz, dz),
-            );
-            let arg = _mm256_sub_ps(
+            let h = _mm256_fmadd_ps(nz, dz, _mm256_fmadd_ps(ny, dy, _mm256_mul_ps(nx, dx)));
+            let arg = _mm256_fnmadd_ps(
+                _mm256_mul_ps(h, h),
+                inv_2ss2,
                 _mm256_mul_ps(_mm256_xor_ps(sign, t2), inv_2sc2),
-                _mm256_mul_ps(_mm256_mul_ps(h, h), inv_2ss2),
             );
             let w = _mm256_and_ps(hit, exp_neg8(arg));
-            sum_wh = _mm256_add_ps(sum_wh, _mm256_mul_ps(w, h));
+            sum_wh = _mm256_fmadd_ps(w, h, sum_wh);
             sum_w = _mm256_add_ps(sum_w, w);
             inside += bits.count_ones();
-            outer += (bits & outer_bits(ids)).count_ones();
+            outer += (bits & u32::from(outer_lanes)).count_ones();
         }
+        let (wh, w) = add_lanes(sum_wh, sum_w);
         LaneSums {
-            wh: lanes(sum_wh),
-            w: lanes(sum_w),
+            wh,
+            w,
             inside,
             outer,
         }
     }
 }
 
-/// Which filter kernel this processor runs: the AVX2 one where it can, else the portable
-/// one. Both give the same bits.
+/// Which filter kernel this processor runs: the AVX2 one where it can (AVX2 and FMA), else
+/// the portable one. Both give the same bits.
 #[derive(Clone, Copy)]
 struct Isa {
-    /// Only ever true when the processor has AVX2 ([`Isa::detect`]).
+    /// Only ever true when the processor has AVX2 and FMA ([`Isa::detect`]).
     avx2: bool,
 }
 
@@ -535,12 +600,12 @@ impl Isa {
         x: &[Vec4],
         v: Vec4,
         n: Vec3A,
-        candidates: &[u32],
+        candidates: Candidates,
         k: Kernel,
     ) -> LaneSums {
         #[cfg(target_arch = "x86_64")]
         if self.avx2 {
-            // SAFETY: `avx2` is true only where the processor has AVX2 (`detect`).
+            // SAFETY: `avx2` is true only where the processor has AVX2 and FMA (`detect`).
             return unsafe { avx2::denoise_vertex(x, v, n, candidates, k) };
         }
         denoise_vertex(x, v, n, candidates, k)
@@ -669,11 +734,11 @@ mod tests {
     #[test]
     fn avx2_kernel_matches_the_portable_one() {
         use std::arch::x86_64::_mm256_loadu_ps;
-        // SAFETY (each call below): AVX2 is available, checked here.
+        // SAFETY (each call below): AVX2 and FMA are available, checked here.
         let exp8 =
             |x: &[f32; 8]| unsafe { avx2::lanes(avx2::exp_neg8(_mm256_loadu_ps(x.as_ptr()))) };
         if !avx2::available() {
-            eprintln!("no AVX2 here: nothing to compare");
+            eprintln!("no AVX2 and FMA here: nothing to compare");
             return;
         }
         let mut x = 0.5f32;
@@ -732,16 +797,11 @@ mod tests {
             for (i, &normal) in normals.iter().enumerate() {
                 let (v, c) = (local.x[i], rings.of(i));
                 let a = denoise_vertex(&local.x, v, normal, c, kernel);
-                // SAFETY: AVX2 is available (checked above).
+                // SAFETY: AVX2 and FMA are available (checked above).
                 let b = unsafe { avx2::denoise_vertex(&local.x, v, normal, c, kernel) };
                 assert_eq!(
-                    a.wh.map(f32::to_bits),
-                    b.wh.map(f32::to_bits),
-                    "pass {pass}, {i}"
-                );
-                assert_eq!(
-                    a.w.map(f32::to_bits),
-                    b.w.map(f32::to_bits),
+                    (a.wh.to_bits(), a.w.to_bits()),
+                    (b.wh.to_bits(), b.w.to_bits()),
                     "pass {pass}, {i}"
                 );
                 assert_eq!((a.inside, a.outer), (b.inside, b.outer));
@@ -754,13 +814,19 @@ mod tests {
         assert!(compared > 2 * n, "the ball held neighbours: {compared}");
     }
 
-    /// A vertex's list without the padding and the flag: (vertex, from the outermost ring).
+    /// A vertex's list without the padding: (vertex, from the outermost ring).
     fn listed(rings: &Rings, v: usize, n: usize) -> Vec<(u32, bool)> {
-        let list = rings.of(v);
-        assert_eq!(list.len() % LANES, 0, "whole groups");
-        list.iter()
-            .filter(|&&j| j != n as u32)
-            .map(|&j| (j & !OUTER, j & OUTER != 0))
+        let c = rings.of(v);
+        assert_eq!(
+            c.ids.len(),
+            LANES * c.outer.len(),
+            "whole groups, a byte each"
+        );
+        c.ids
+            .iter()
+            .enumerate()
+            .filter(|&(_, &j)| j != n as u32)
+            .map(|(k, &j)| (j, c.outer[k / LANES] >> (k % LANES) & 1 != 0))
             .collect()
     }
 
