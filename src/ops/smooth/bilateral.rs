@@ -48,6 +48,24 @@ pub(super) struct BilateralOutcome {
     pub outer_ring_neighbours: u64,
 }
 
+/// What the filter needs of the mesh's connectivity, built once per step: each vertex's
+/// candidates ([`Rings`]) and the triangles' order for the vertex normals ([`NormalPlan`]).
+#[derive(Default)]
+pub struct Prepared {
+    rings: Rings,
+    normals: NormalPlan,
+}
+
+impl Prepared {
+    /// See [`Rings::new`] for `order`, `positions` and `radius`.
+    pub fn new(topology: &Topology, order: u32, positions: &[DVec3], radius: f64) -> Prepared {
+        Prepared {
+            rings: Rings::new(topology, order, positions, radius),
+            normals: NormalPlan::new(topology),
+        }
+    }
+}
+
 /// Each vertex's order-k neighbourhood without the vertex itself (CSR), those inside the
 /// ρ-ball when the rings were built first, padded to whole groups of [`LANES`] with the
 /// index n (a point far outside every ball). Each group has a byte saying which of its
@@ -236,6 +254,7 @@ fn index_mask(x: &[Vec4]) -> usize {
 /// that a vertex's triangles sit near each other and near its neighbours'; each vertex
 /// keeps its triangles' places in that order, listed in the original triangle order, so
 /// the sums are added in the same order as before: the normals are bit for bit the same.
+#[derive(Default)]
 struct NormalPlan {
     /// The triangles sorted by their lowest vertex (each keeps its vertex order).
     triangles: Vec<[u32; 3]>,
@@ -620,8 +639,7 @@ pub(super) fn ball_radius(params: &BilateralParams, unit: f64) -> f64 {
 
 /// `unit` converts the parameters to model units (the mean edge length, or 1).
 pub(super) fn run(
-    topology: &Topology,
-    rings: &Rings,
+    prepared: &Prepared,
     graph: &SmoothGraph,
     positions: &mut Vec<DVec3>,
     params: &BilateralParams,
@@ -654,8 +672,8 @@ pub(super) fn run(
     // scan's extent allows, wherever the scanner put its origin.
     let centre = bounding_box_of(positions).map_or(DVec3::ZERO, |(lo, hi)| (lo + hi) / 2.0);
     let mut local = WorkingCopy::new(n);
-    let plan = NormalPlan::new(topology);
-    let mut faces = Vec::with_capacity(topology.triangle_count());
+    let (rings, plan) = (&prepared.rings, &prepared.normals);
+    let mut faces = Vec::with_capacity(plan.triangles.len());
     let mut normals = vec![Vec3A::ZERO; n];
     let mut next = vec![DVec3::ZERO; n];
     let isa = Isa::detect();
@@ -664,7 +682,7 @@ pub(super) fn run(
     local.update(positions, centre);
     let mut following = WorkingCopy::new(n);
     for _ in 0..iterations {
-        vertex_normals(&plan, &local.x, &mut faces, &mut normals);
+        vertex_normals(plan, &local.x, &mut faces, &mut normals);
         let (x, xl) = (&*positions, &*local.x);
         let (empty, inside, outer): (u64, u64, u64) = next
             .par_chunks_mut(CHUNK)

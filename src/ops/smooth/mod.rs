@@ -23,7 +23,6 @@ mod laplace;
 mod taubin;
 
 use crate::mesh::Mesh;
-use crate::mesh::topology::Topology;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -521,10 +520,10 @@ pub(crate) const CHUNK: usize = 4096;
 /// resolved against the mesh (the bilateral length unit). [`smooth`] is `new` + `run`;
 /// benchmarks use the two halves to time the passes alone.
 pub struct Smoother {
-    topology: Topology,
     graph: SmoothGraph,
-    /// The bilateral filter's candidate neighbourhoods (empty for the other methods).
-    rings: bilateral::Rings,
+    /// The bilateral filter's candidate neighbourhoods and normal plan (empty for the other
+    /// methods).
+    bilateral: bilateral::Prepared,
     params: SmoothParams,
     /// Model units per parameter unit for the bilateral lengths.
     length_unit: f64,
@@ -550,19 +549,18 @@ impl Smoother {
             }) => mesh.mean_edge_length(),
             _ => 1.0,
         };
-        let rings = match params.method {
-            SmoothMethod::Bilateral(p) => bilateral::Rings::new(
+        let bilateral = match params.method {
+            SmoothMethod::Bilateral(p) => bilateral::Prepared::new(
                 &topology,
                 p.rings,
                 &mesh.positions,
                 bilateral::ball_radius(&p, length_unit),
             ),
-            _ => bilateral::Rings::default(),
+            _ => bilateral::Prepared::default(),
         };
         Smoother {
-            topology,
             graph,
-            rings,
+            bilateral,
             params: params.clone(),
             length_unit,
         }
@@ -586,8 +584,7 @@ impl Smoother {
             SmoothMethod::Taubin(p) => taubin::run(graph, positions, &p, iterations, update),
             SmoothMethod::Bilateral(p) => {
                 let out = bilateral::run(
-                    &self.topology,
-                    &self.rings,
+                    &self.bilateral,
                     graph,
                     positions,
                     &p,
