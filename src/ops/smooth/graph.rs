@@ -10,6 +10,22 @@ use crate::mesh::topology::Topology;
 use glam::DVec3;
 use rayon::prelude::*;
 
+/// Cotangent weights, one per row entry, and the per-corner cotangents they are summed
+/// from, kept between passes so that a pass allocates nothing. Reads as the per-entry
+/// weights.
+#[derive(Debug, Clone)]
+pub struct EdgeWeights {
+    per_entry: Vec<f64>,
+    per_corner: Vec<f64>,
+}
+
+impl std::ops::Deref for EdgeWeights {
+    type Target = [f64];
+    fn deref(&self) -> &[f64] {
+        &self.per_entry
+    }
+}
+
 /// CSR rows of the smoothing operator, plus what cotangent weights need.
 #[derive(Debug, Clone)]
 pub struct SmoothGraph {
@@ -156,7 +172,7 @@ impl SmoothGraph {
             }
             // All cotangents clamped to zero (a degenerate ring): fall back to uniform.
             if sum > 0.0 {
-                return Some(acc / sum);
+                return Some(acc * sum.recip());
             }
         }
         let mut acc = DVec3::ZERO;
@@ -167,7 +183,7 @@ impl SmoothGraph {
     }
 
     /// A weight buffer for `weights` (`None` for uniform weights).
-    pub fn weight_buffer(&self, weights: Weights) -> Option<Vec<f64>> {
+    pub fn weight_buffer(&self, weights: Weights) -> Option<EdgeWeights> {
         match weights {
             Weights::Uniform => None,
             Weights::Cotangent => {
@@ -175,7 +191,10 @@ impl SmoothGraph {
                     !self.entry_owner.is_empty() || self.neighbours.is_empty(),
                     "graph built without cotangent data"
                 );
-                Some(vec![1.0; self.neighbours.len()])
+                Some(EdgeWeights {
+                    per_entry: vec![1.0; self.neighbours.len()],
+                    per_corner: vec![0.0; self.corner_vertices.len()],
+                })
             }
         }
     }
@@ -186,9 +205,14 @@ impl SmoothGraph {
     /// Entries without opposite corners (free border rows) keep weight 1. The cotangents
     /// are computed once per triangle corner (one cross product per triangle), then summed
     /// per entry.
-    pub fn refresh_weights(&self, weights: &mut Option<Vec<f64>>, x: &[DVec3]) {
-        let Some(w) = weights else { return };
-        let mut cot = vec![0.0; self.corner_vertices.len()];
+    pub fn refresh_weights(&self, weights: &mut Option<EdgeWeights>, x: &[DVec3]) {
+        let Some(EdgeWeights {
+            per_entry: w,
+            per_corner: cot,
+        }) = weights
+        else {
+            return;
+        };
         cot.par_chunks_mut(3 * CHUNK)
             .zip(self.corner_vertices.par_chunks(3 * CHUNK))
             .for_each(|(cot, corners)| {
@@ -198,11 +222,13 @@ impl SmoothGraph {
                     let sin = (p[1] - p[0]).cross(p[2] - p[0]).length();
                     // Zero, or NaN for non-finite input: no weight from this triangle.
                     if sin.is_nan() || sin <= 0.0 {
+                        c.fill(0.0);
                         continue;
                     }
+                    let inv_sin = 1.0 / sin;
                     for k in 0..3 {
                         let (a, b) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
-                        c[k] = a.dot(b) / sin;
+                        c[k] = a.dot(b) * inv_sin;
                     }
                 }
             });
