@@ -84,7 +84,8 @@ pub struct Rings {
 /// Flag bit of a candidate from the outermost ring, while the lists are built.
 const OUTER: u32 = 1 << 31;
 
-/// One vertex's candidates ([`Rings::of`]).
+/// One vertex's candidates. Only [`Rings::of`] makes one, and every index in it is at most
+/// `bound`: the AVX2 kernel relies on that for its unchecked loads.
 #[derive(Clone, Copy)]
 struct Candidates<'a> {
     /// Vertex indices, whole groups of [`LANES`], each at most `bound`.
@@ -541,8 +542,8 @@ mod avx2 {
         k: Kernel,
     ) -> LaneSums {
         // Every candidate is at most `bound` (Rings::new), so below `x.len()`: the loads
-        // below need no bounds check (with one, or a mask, they were a third of a group's
-        // instructions).
+        // below need no bounds check (with one, or a mask, they were about a quarter of a
+        // group's instructions).
         assert!(
             candidates.bound < x.len(),
             "the working copy covers the rings"
