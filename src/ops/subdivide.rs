@@ -4,7 +4,9 @@
 //! edge interpolates its own texture coordinates.
 
 use crate::mesh::{Index, Mesh, Wedge};
-use std::collections::HashMap;
+// The maps are only looked up (the output order follows the triangles), so a fast
+// non-cryptographic hash changes nothing but the time.
+use rustc_hash::FxHashMap as HashMap;
 
 /// A midpoint is shared by everything that references the same unordered pair.
 fn pair(a: Index, b: Index) -> (Index, Index) {
@@ -25,10 +27,10 @@ pub fn subdivide(mesh: &Mesh) -> Mesh {
         materials: mesh.materials.clone(),
         triangle_origins: Vec::with_capacity(mesh.triangles.len() * 4),
     };
-    let mut mid_vertex: HashMap<(Index, Index), Index> = HashMap::new();
-    let mut mid_texcoord: HashMap<(Index, Index), Index> = HashMap::new();
-    let mut mid_normal: HashMap<(Index, Index), Index> = HashMap::new();
-    let mut mid_wedge: HashMap<Wedge, Index> = HashMap::new();
+    let mut mid_vertex: HashMap<(Index, Index), Index> = HashMap::default();
+    let mut mid_texcoord: HashMap<(Index, Index), Index> = HashMap::default();
+    let mut mid_normal: HashMap<(Index, Index), Index> = HashMap::default();
+    let mut mid_wedge: HashMap<Wedge, Index> = HashMap::default();
 
     for t in 0..mesh.triangles.len() {
         let w = mesh.triangles[t].map(|i| mesh.wedges[i as usize]);
