@@ -14,6 +14,7 @@
 
 use crate::mesh::Mesh;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Triangles per leaf. Four keeps the tree small (a quarter of the nodes of one per leaf)
 /// while a leaf's triangles are still cheap to test one after another.
@@ -27,6 +28,15 @@ struct Node {
     max: [f32; 3],
     first: u32,
     count: u32,
+}
+
+impl Node {
+    const EMPTY: Node = Node {
+        min: [0.0; 3],
+        max: [0.0; 3],
+        first: 0,
+        count: 0,
+    };
 }
 
 /// The closest point of a triangle to a query point.
@@ -65,55 +75,20 @@ impl<'a> TriangleBvh<'a> {
     /// e.g. zero-area ones). Positions must be finite.
     pub fn new(mesh: &'a Mesh, triangles: Vec<u32>) -> TriangleBvh<'a> {
         let mut items: Vec<(u32, [f32; 3])> = triangles
-            .iter()
+            .par_iter()
             .map(|&t| {
                 let [a, b, c] = mesh.triangle_positions(t as usize);
                 let centroid = (a + b + c) / 3.0;
                 (t, centroid.as_vec3().to_array())
             })
             .collect();
-        let mut nodes = Vec::with_capacity(2 * items.len() / LEAF_SIZE + 1);
-        nodes.push(Node {
-            min: [0.0; 3],
-            max: [0.0; 3],
-            first: 0,
-            count: 0,
-        });
-        // Depth-first with an explicit stack: (node, start, end) over `items`.
-        let mut stack = vec![(0usize, 0usize, items.len())];
-        while let Some((node, start, end)) = stack.pop() {
-            let (min, max) = bounds(mesh, &items[start..end]);
-            nodes[node].min = min;
-            nodes[node].max = max;
-            if end - start <= LEAF_SIZE {
-                nodes[node].first = start as u32;
-                nodes[node].count = (end - start) as u32;
-                continue;
-            }
-            // Split at the median centroid along the axis where the centroids spread most.
-            let slice = &mut items[start..end];
-            let axis = widest_centroid_axis(slice);
-            let mid = slice.len() / 2;
-            slice.select_nth_unstable_by(mid, |a, b| {
-                a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0))
-            });
-            let left = nodes.len();
-            nodes[node].first = left as u32;
-            nodes[node].count = 0;
-            for _ in 0..2 {
-                nodes.push(Node {
-                    min: [0.0; 3],
-                    max: [0.0; 3],
-                    first: 0,
-                    count: 0,
-                });
-            }
-            stack.push((left + 1, start + mid, end));
-            stack.push((left, start, start + mid));
-        }
+        let sizes = SubtreeSizes::new(items.len());
+        let mut nodes = vec![Node::EMPTY; 1 + sizes.descendants(items.len())];
+        let (root, descendants) = nodes.split_first_mut().expect("the root is always there");
+        *root = build(mesh, &sizes, &mut items, 0, descendants, 1);
         let order: Vec<u32> = items.iter().map(|&(t, _)| t).collect();
         let corners = order
-            .iter()
+            .par_iter()
             .map(|&t| mesh.triangle_vertices(t as usize))
             .collect();
         TriangleBvh {
@@ -211,7 +186,116 @@ impl<'a> TriangleBvh<'a> {
     }
 }
 
-fn bounds(mesh: &Mesh, items: &[(u32, [f32; 3])]) -> ([f32; 3], [f32; 3]) {
+/// Node counts of the subtrees `build` makes: they depend only on the number of triangles
+/// (every split is at the median), so each subtree's place in the node array is known before
+/// it is built, and the halves can be built in parallel into their own parts of the array.
+/// At every depth the subtrees have one of two sizes (⌊n/2^d⌋ or one more), so the table is
+/// small.
+struct SubtreeSizes(rustc_hash::FxHashMap<usize, usize>);
+
+impl SubtreeSizes {
+    fn new(len: usize) -> SubtreeSizes {
+        fn fill(len: usize, table: &mut rustc_hash::FxHashMap<usize, usize>) -> usize {
+            if len <= LEAF_SIZE {
+                return 0;
+            }
+            if let Some(&d) = table.get(&len) {
+                return d;
+            }
+            let mid = len / 2;
+            let d = 2 + fill(mid, table) + fill(len - mid, table);
+            table.insert(len, d);
+            d
+        }
+        let mut table = rustc_hash::FxHashMap::default();
+        fill(len, &mut table);
+        SubtreeSizes(table)
+    }
+
+    /// Nodes below the root of a subtree over `len` triangles.
+    fn descendants(&self, len: usize) -> usize {
+        if len <= LEAF_SIZE { 0 } else { self.0[&len] }
+    }
+}
+
+/// Subtrees at least this large build their halves in parallel.
+const PARALLEL_BUILD: usize = 1 << 14;
+
+/// Builds the subtree over `items` (sorting them into leaf order) and returns its root;
+/// `items` starts at `first_item` of the whole list, and the subtree's descendants go into
+/// `below`, which is the node array from index `offset` on. Layout: a
+/// node's two children sit side by side at the start of its part of the array, followed by
+/// the left child's descendants and then the right child's.
+///
+/// Boxes are computed bottom up: a leaf's from its triangles' corners (rounded outwards to
+/// `f32`), an inner node's as the union of its children's, which is the same box as
+/// rounding the union of the corners (rounding is monotone).
+fn build(
+    mesh: &Mesh,
+    sizes: &SubtreeSizes,
+    items: &mut [(u32, [f32; 3])],
+    first_item: usize,
+    below: &mut [Node],
+    offset: usize,
+) -> Node {
+    if items.len() <= LEAF_SIZE {
+        let (min, max) = leaf_bounds(mesh, items);
+        return Node {
+            min,
+            max,
+            first: first_item as u32,
+            count: items.len() as u32,
+        };
+    }
+    // Split at the median centroid along the axis where the centroids spread most.
+    let axis = widest_centroid_axis(items);
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |a, b| {
+        a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0))
+    });
+    let (left_items, right_items) = items.split_at_mut(mid);
+    let (pair, rest) = below.split_at_mut(2);
+    let (left_below, right_below) = rest.split_at_mut(sizes.descendants(mid));
+    let right_offset = offset + 2 + left_below.len();
+    let right_first = first_item + mid;
+    let (left, right) = if left_items.len() + right_items.len() >= PARALLEL_BUILD {
+        rayon::join(
+            || build(mesh, sizes, left_items, first_item, left_below, offset + 2),
+            || {
+                build(
+                    mesh,
+                    sizes,
+                    right_items,
+                    right_first,
+                    right_below,
+                    right_offset,
+                )
+            },
+        )
+    } else {
+        (
+            build(mesh, sizes, left_items, first_item, left_below, offset + 2),
+            build(
+                mesh,
+                sizes,
+                right_items,
+                right_first,
+                right_below,
+                right_offset,
+            ),
+        )
+    };
+    pair[0] = left;
+    pair[1] = right;
+    Node {
+        min: [0, 1, 2].map(|k| left.min[k].min(right.min[k])),
+        max: [0, 1, 2].map(|k| left.max[k].max(right.max[k])),
+        first: offset as u32,
+        count: 0,
+    }
+}
+
+fn leaf_bounds(mesh: &Mesh, items: &[(u32, [f32; 3])]) -> ([f32; 3], [f32; 3]) {
     let mut min = DVec3::INFINITY;
     let mut max = DVec3::NEG_INFINITY;
     for &(t, _) in items {
@@ -360,6 +444,57 @@ mod tests {
                 assert_eq!(hinted.distance_squared, hit.distance_squared);
             }
         }
+    }
+
+    /// The tree over a mesh large enough for the parallel build: every triangle in exactly
+    /// one leaf, every box the union of its children's, and the same tree on one thread as
+    /// on two.
+    #[test]
+    fn parallel_build_is_a_valid_tree_whatever_the_threads() {
+        let mesh = uv_sphere(1.0, 120, 160);
+        let n = mesh.triangles.len();
+        assert!(n > 2 * PARALLEL_BUILD);
+        let all: Vec<u32> = (0..n as u32).collect();
+        let build_on = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let bvh = TriangleBvh::new(&mesh, all.clone());
+                let nodes: Vec<_> = bvh
+                    .nodes
+                    .iter()
+                    .map(|n| (n.min, n.max, n.first, n.count))
+                    .collect();
+                (nodes, bvh.order.clone())
+            })
+        };
+        let (one, two) = (build_on(1), build_on(2));
+        assert_eq!(one, two);
+        let bvh = TriangleBvh::new(&mesh, all);
+        let mut seen = vec![0u32; n];
+        let mut stack = vec![0usize];
+        while let Some(i) = stack.pop() {
+            let node = bvh.nodes[i];
+            if node.count > 0 {
+                assert!(node.count as usize <= LEAF_SIZE);
+                for j in node.first..node.first + node.count {
+                    seen[bvh.order[j as usize] as usize] += 1;
+                }
+                continue;
+            }
+            let (l, r) = (
+                bvh.nodes[node.first as usize],
+                bvh.nodes[node.first as usize + 1],
+            );
+            for k in 0..3 {
+                assert_eq!(node.min[k], l.min[k].min(r.min[k]));
+                assert_eq!(node.max[k], l.max[k].max(r.max[k]));
+            }
+            stack.extend([node.first as usize, node.first as usize + 1]);
+        }
+        assert!(seen.iter().all(|&s| s == 1), "every triangle in one leaf");
     }
 
     #[test]
