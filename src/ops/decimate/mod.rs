@@ -351,6 +351,17 @@ pub fn decimate(
     mesh: &Mesh,
     params: &DecimateParams,
 ) -> Result<(Mesh, DecimateReport), DecimateError> {
+    decimate_with_origin(mesh, params, None)
+}
+
+/// [`decimate`] of a mesh whose `triangle_origins` index `origin` (an earlier decimation's
+/// input): the flip guard of the collapse methods holds every triangle against its origin
+/// triangle's normal, as one decimation from `origin` would.
+pub fn decimate_with_origin(
+    mesh: &Mesh,
+    params: &DecimateParams,
+    origin: Option<&Mesh>,
+) -> Result<(Mesh, DecimateReport), DecimateError> {
     params.validate().map_err(DecimateError::Params)?;
     if mesh.triangles.is_empty() {
         return Err(DecimateError::Empty);
@@ -358,10 +369,10 @@ pub fn decimate(
     let has_uv = !mesh.texcoords.is_empty();
     let has_n = !mesh.normals.is_empty();
     let (mut out, mut report) = match (has_uv, has_n) {
-        (true, true) => run::<5>(mesh, params),
-        (true, false) => run::<2>(mesh, params),
-        (false, true) => run::<3>(mesh, params),
-        (false, false) => run::<0>(mesh, params),
+        (true, true) => run::<5>(mesh, params, origin),
+        (true, false) => run::<2>(mesh, params, origin),
+        (false, true) => run::<3>(mesh, params, origin),
+        (false, false) => run::<0>(mesh, params, origin),
     };
     report.method = params.method.name().to_string();
     report.faces_before = mesh.triangles.len();
@@ -407,7 +418,11 @@ fn weights<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> Weights<M> {
     }
 }
 
-fn run<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> (Mesh, DecimateReport) {
+fn run<const M: usize>(
+    mesh: &Mesh,
+    params: &DecimateParams,
+    origin: Option<&Mesh>,
+) -> (Mesh, DecimateReport) {
     let w = weights::<M>(mesh, params);
     let diag = mesh.bounding_box_diagonal();
     match params.method {
@@ -427,7 +442,7 @@ fn run<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> (Mesh, DecimateR
                 guards: params.guards,
             };
             let (t0, c0) = (std::time::Instant::now(), cpu_seconds());
-            let mut work = Work::<M>::new(mesh, w, cfg);
+            let mut work = Work::<M>::new(mesh, w, cfg, origin);
             let (t1, c1) = (std::time::Instant::now(), cpu_seconds());
             // Normalised units: the largest box side is 1.
             let to_diag = if diag > 0.0 {

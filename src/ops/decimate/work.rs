@@ -214,7 +214,12 @@ pub struct Work<'a, const M: usize> {
 impl<'a, const M: usize> Work<'a, M> {
     /// Builds the working mesh: normalised positions, corner lists, vertex classes and
     /// the wedge quadrics (in parallel).
-    pub fn new(input: &'a Mesh, w: Weights<M>, cfg: Config) -> Self {
+    ///
+    /// `origin`, when given, is the mesh that `input`'s `triangle_origins` index (an
+    /// earlier decimation's input): the flip guard then holds each triangle against the
+    /// normal of its triangle there instead of its own, so that a second decimation of a
+    /// decimated mesh keeps the guarantee against the first one's input.
+    pub fn new(input: &'a Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
         let has_uv = !input.texcoords.is_empty() && M >= 2;
         let has_normals = !input.normals.is_empty() && (M == 3 || M == 5);
         let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
@@ -280,7 +285,13 @@ impl<'a, const M: usize> Work<'a, M> {
             vred: Vec::new(),
             onormal: (0..input.triangles.len())
                 .into_par_iter()
-                .map(|t| oct_encode(input.triangle_cross(t).to_array()))
+                .map(|t| {
+                    let n = match origin {
+                        Some(o) => o.triangle_cross(input.triangle_origin(t) as usize),
+                        None => input.triangle_cross(t),
+                    };
+                    oct_encode(n.to_array())
+                })
                 .collect(),
             wchanged: vec![false; nw],
             w,
