@@ -7,7 +7,7 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
-use scanmill::ops::decimate::{DecimateParams, Method, decimate};
+use scanmill::ops::decimate::{DecimateParams, Halves, Method, decimate};
 use scanmill::ops::subdivide::subdivide;
 use std::hint::black_box;
 use std::path::Path;
@@ -92,6 +92,16 @@ fn bench(c: &mut Criterion) {
                 b.iter(|| black_box(decimate(mesh, &p).unwrap().0.triangles.len()))
             });
         }
+        // The default edge collapse decimates a large scan's halves on two cores first
+        // (`halves = "auto"`); this is the single pass beside it.
+        let one_pass = DecimateParams {
+            target_faces: Some(26_000),
+            halves: Halves::Off,
+            ..Default::default()
+        };
+        g.bench_function(format!("{name}/edge-collapse-one-pass"), |b| {
+            b.iter(|| black_box(decimate(mesh, &one_pass).unwrap().0.triangles.len()))
+        });
     }
     g.finish();
 }

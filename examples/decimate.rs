@@ -6,8 +6,10 @@
 //! cargo run --release --example decimate -- ../shared/data/textured/facefuns_di3d_face/example.obj \
 //!     --subdivide 2 --target 26000 [--method edge-collapse] [--meshopt] [--renumber] [--audit] [--quality] \
 //!     [--seam-fix] [--texture IMG] [--params 'texture_weight = 1e-17'] [--out out.obj]
-//!     [--split 1.5]
 //! ```
+//!
+//! `--params 'halves = "off"'` (or `"on"`) compares one pass with the halves
+//! (`ops::decimate::halves`; the default decides by size).
 
 use clap::Parser;
 use glam::{DVec2, DVec3};
@@ -55,185 +57,6 @@ struct Args {
     /// recipe that decimates (`Mesh::reorder_for_locality`).
     #[arg(long)]
     renumber: bool,
-    /// Experiment: split the mesh in two halves at the median centroid, decimate each on
-    /// its own core to its share of `split × target` (the cut kept as a border), stitch,
-    /// and decimate the result to the target.
-    #[arg(long)]
-    split: Option<f64>,
-}
-
-/// The triangles `keep` of `mesh` as a mesh of their own: only what they use is copied,
-/// in the input's order (so the two halves together hold about one input's worth).
-fn part(mesh: &Mesh, keep: &[bool]) -> Mesh {
-    const NONE: u32 = u32::MAX;
-    let mut m = Mesh {
-        materials: mesh.materials.clone(),
-        ..Mesh::default()
-    };
-    let mut wmap = vec![NONE; mesh.wedges.len()];
-    let mut vmap = vec![NONE; mesh.positions.len()];
-    let mut tmap = vec![NONE; mesh.texcoords.len()];
-    let mut nmap = vec![NONE; mesh.normals.len()];
-    let take = |map: &mut Vec<u32>, i: u32, len: usize| -> (u32, bool) {
-        let fresh = map[i as usize] == NONE;
-        if fresh {
-            map[i as usize] = len as u32;
-        }
-        (map[i as usize], fresh)
-    };
-    for t in (0..mesh.triangles.len()).filter(|&t| keep[t]) {
-        let tri = mesh.triangles[t].map(|w| {
-            let (nw, fresh) = take(&mut wmap, w, m.wedges.len());
-            if fresh {
-                let wd = mesh.wedges[w as usize];
-                let (v, new_v) = take(&mut vmap, wd.vertex, m.positions.len());
-                if new_v {
-                    m.positions.push(mesh.positions[wd.vertex as usize]);
-                    if !mesh.colors.is_empty() {
-                        m.colors.push(mesh.colors[wd.vertex as usize]);
-                    }
-                }
-                let texcoord = wd.texcoord.map(|i| {
-                    let (x, new_x) = take(&mut tmap, i, m.texcoords.len());
-                    if new_x {
-                        m.texcoords.push(mesh.texcoords[i as usize]);
-                    }
-                    x
-                });
-                let normal = wd.normal.map(|i| {
-                    let (x, new_x) = take(&mut nmap, i, m.normals.len());
-                    if new_x {
-                        m.normals.push(mesh.normals[i as usize]);
-                    }
-                    x
-                });
-                m.wedges.push(scanmill::mesh::Wedge {
-                    vertex: v,
-                    texcoord,
-                    normal,
-                });
-            }
-            nw
-        });
-        m.triangles.push(tri);
-        if !mesh.triangle_materials.is_empty() {
-            m.triangle_materials.push(mesh.triangle_materials[t]);
-        }
-        m.triangle_origins.push(mesh.triangle_origin(t));
-    }
-    m
-}
-
-/// The two meshes as one, vertices at bit-identical positions welded (the cut's
-/// vertices, which neither half moved).
-fn stitch(a: &Mesh, b: &Mesh) -> Mesh {
-    let mut m = a.clone();
-    let mut at: std::collections::HashMap<[u64; 3], u32> = a
-        .positions
-        .iter()
-        .enumerate()
-        .map(|(i, p)| (p.to_array().map(f64::to_bits), i as u32))
-        .collect();
-    let vmap: Vec<u32> = b
-        .positions
-        .iter()
-        .map(|p| {
-            *at.entry(p.to_array().map(f64::to_bits)).or_insert_with(|| {
-                m.positions.push(*p);
-                (m.positions.len() - 1) as u32
-            })
-        })
-        .collect();
-    let shared = a.positions.len() as u32;
-    // A cut vertex has the same wedges in both halves (neither moved it or changed its
-    // attributes): B's copy of such a wedge becomes A's, found by its values.
-    let value = |m: &Mesh, w: &scanmill::mesh::Wedge| {
-        (
-            w.texcoord
-                .map(|t| m.texcoords[t as usize].to_array().map(f64::to_bits)),
-            w.normal
-                .map(|n| m.normals[n as usize].to_array().map(f64::to_bits)),
-        )
-    };
-    let mut a_wedges: std::collections::HashMap<_, u32> = Default::default();
-    for (i, w) in a.wedges.iter().enumerate() {
-        a_wedges.entry((w.vertex, value(a, w))).or_insert(i as u32);
-    }
-    let (t0, n0) = (m.texcoords.len() as u32, m.normals.len() as u32);
-    m.texcoords.extend_from_slice(&b.texcoords);
-    m.normals.extend_from_slice(&b.normals);
-    let wmap: Vec<u32> = b
-        .wedges
-        .iter()
-        .map(|w| {
-            let v = vmap[w.vertex as usize];
-            if v < shared
-                && let Some(&aw) = a_wedges.get(&(v, value(b, w)))
-            {
-                return aw;
-            }
-            m.wedges.push(scanmill::mesh::Wedge {
-                vertex: v,
-                texcoord: w.texcoord.map(|t| t + t0),
-                normal: w.normal.map(|n| n + n0),
-            });
-            (m.wedges.len() - 1) as u32
-        })
-        .collect();
-    m.triangles
-        .extend(b.triangles.iter().map(|t| t.map(|w| wmap[w as usize])));
-    m.triangle_materials
-        .extend_from_slice(&b.triangle_materials);
-    m.triangle_origins.extend_from_slice(&b.triangle_origins);
-    m
-}
-
-fn split_decimate(mesh: &Mesh, p: &DecimateParams, factor: f64) -> Mesh {
-    let t = Instant::now();
-    let n = mesh.triangles.len();
-    let cent: Vec<DVec3> = (0..n)
-        .map(|t| {
-            let q = mesh.triangle_positions(t);
-            (q[0] + q[1] + q[2]) / 3.0
-        })
-        .collect();
-    let (lo, hi) = mesh.bounding_box().unwrap();
-    let axis = (hi - lo).max_position();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.select_nth_unstable_by(n / 2, |&a, &b| cent[a][axis].total_cmp(&cent[b][axis]));
-    let mut in_a = vec![false; n];
-    for &t in &order[..n / 2] {
-        in_a[t] = true;
-    }
-    let in_b: Vec<bool> = in_a.iter().map(|x| !x).collect();
-    let (a, b) = rayon::join(|| part(mesh, &in_a), || part(mesh, &in_b));
-    let goal = (p.target_faces.unwrap() as f64 * factor) as usize;
-    let sub = |m: &Mesh, share: f64| {
-        let mut q = p.clone();
-        q.target_faces = Some((goal as f64 * share) as usize);
-        decimate::decimate(m, &q).expect("decimate half").0
-    };
-    let t1 = Instant::now();
-    let (da, db) = rayon::join(|| sub(&a, 0.5), || sub(&b, 0.5));
-    let t2 = Instant::now();
-    let mut st = stitch(&da, &db);
-    st.compact();
-    let t3 = Instant::now();
-    let (out, report) =
-        decimate::decimate_with_origin(&st, p, Some(mesh)).expect("decimate stitched");
-    eprintln!(
-        "split: parts {:.3} s, halves {:.3} s ({} + {} faces), stitch {:.3} s ({} faces, {} vertices), final {:.3} s ({} collapses)",
-        (t1 - t).as_secs_f64(),
-        (t2 - t1).as_secs_f64(),
-        da.triangles.len(),
-        db.triangles.len(),
-        (t3 - t2).as_secs_f64(),
-        st.triangles.len(),
-        st.positions.len(),
-        t3.elapsed().as_secs_f64(),
-        report.collapses
-    );
-    out
 }
 
 /// An RGB image for bilinear lookups at OBJ texture coordinates (origin bottom left,
@@ -594,15 +417,6 @@ fn main() {
                 args.method, args.target, args.params
             );
             let p: DecimateParams = toml::from_str(&text).expect("params");
-            if let Some(f) = args.split {
-                out = split_decimate(&mesh, &p, f);
-                eprintln!(
-                    "split: {} faces in {:.3} s",
-                    out.triangles.len(),
-                    t.elapsed().as_secs_f64()
-                );
-                continue;
-            }
             let (o, report) = decimate::decimate(&mesh, &p).expect("decimate");
             let secs = t.elapsed().as_secs_f64();
             println!("{}", serde_json::to_string(&report).unwrap());

@@ -8,7 +8,7 @@
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
 use scanmill::ops::decimate::audit::audit;
-use scanmill::ops::decimate::{DecimateParams, Method, decimate, decimate_with_origin};
+use scanmill::ops::decimate::{DecimateParams, Halves, Method, decimate, decimate_with_origin};
 use std::path::Path;
 
 const SCANS: &[&str] = &[
@@ -28,14 +28,22 @@ fn scan(rel: &str) -> Mesh {
 }
 
 fn check(rel: &str, mesh: &Mesh, method: Method, target: usize) {
+    check_with(rel, mesh, method, target, Halves::Auto);
+}
+
+fn check_with(rel: &str, mesh: &Mesh, method: Method, target: usize, halves: Halves) {
     let params = DecimateParams {
         method,
         target_faces: Some(target),
+        halves,
         ..Default::default()
     };
     let (out, r) = decimate(mesh, &params).unwrap();
     out.check_invariants().unwrap();
-    let what = format!("{rel} {method:?} → {target}");
+    let what = format!("{rel} {method:?} {halves:?} → {target}");
+    if halves == Halves::On && mesh.triangles.len() > 3 * target {
+        assert!(r.halves.is_some(), "{what}: decimated in one pass");
+    }
     let a = audit(mesh, &out);
     let (b, c) = (a.before, a.after);
     assert!(
@@ -98,6 +106,41 @@ fn edge_collapse_guarantees_on_real_scans() {
             check(rel, &mesh, Method::EdgeCollapse, target);
         }
     }
+}
+
+/// The same guarantees when the halves are decimated first, on both cores (the default
+/// for scans of 150,000 triangles or more; none of these is that large, so it is forced).
+#[test]
+fn edge_collapse_in_halves_keeps_the_guarantees_on_real_scans() {
+    for rel in SCANS {
+        let mesh = scan(rel);
+        for target in [26_000, 5_000] {
+            check_with(rel, &mesh, Method::EdgeCollapse, target, Halves::On);
+        }
+    }
+}
+
+/// The halves give the same mesh on one thread as on two.
+#[test]
+fn halves_do_not_depend_on_the_thread_count() {
+    let rel = "textured/esp32cam_meshroom_raw/texturedMesh.obj";
+    let mesh = scan(rel);
+    let params = DecimateParams {
+        target_faces: Some(5_000),
+        halves: Halves::On,
+        ..Default::default()
+    };
+    let on = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| decimate(&mesh, &params).unwrap())
+    };
+    let ((one, r1), (two, r2)) = (on(1), on(2));
+    assert!(r1.halves.is_some());
+    assert_eq!(one, two);
+    assert_eq!(r1, r2);
 }
 
 #[test]
