@@ -381,6 +381,8 @@ fn run_meshopt(mesh: &Mesh, target: usize, uv_weight: f32) -> Mesh {
 }
 
 fn main() {
+    // As the scanmill binary does, so that peak memory is measured as the product runs.
+    scanmill::memory::configure();
     tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::from_default_env())
         .init();

@@ -289,6 +289,7 @@ fn run_compare(
 }
 
 fn main() -> ExitCode {
+    scanmill::memory::configure();
     let cli = Cli::parse();
     if let Command::Service(service) = &cli.command {
         // The daemon sets up its own logging (journald under systemd, info level).
