@@ -258,6 +258,58 @@ fn params_validate_and_parse() {
 }
 
 #[test]
+fn halves_parse_and_say_when_they_cannot_apply() {
+    let parse =
+        |extra: &str| toml::from_str::<DecimateParams>(&format!("target_faces = 1000\n{extra}"));
+    assert_eq!(parse("").unwrap().halves, super::Halves::Auto);
+    assert_eq!(
+        parse("halves = \"off\"").unwrap().halves,
+        super::Halves::Off
+    );
+    assert!(parse("halves = \"on\"").unwrap().validate().is_ok());
+    assert!(parse("halves = \"sometimes\"").is_err());
+    // Forced halves need the kept border that holds the cut, and a face target.
+    for bad in [
+        "halves = \"on\"\nboundary = \"free\"",
+        "halves = \"on\"\nmethod = \"face-collapse\"",
+        "halves = \"on\"\nmax_error = 0.01",
+    ] {
+        let e = parse(bad).unwrap().validate().unwrap_err();
+        assert!(e.contains("halves"), "{bad}: {e}");
+    }
+}
+
+/// On a small closed mesh the halves keep it closed and reach the target; the cut's
+/// vertices are found in both halves and stitched.
+#[test]
+fn halves_on_a_sphere_stitch_and_reach_the_target() {
+    let m = subdivide(&uv_sphere(1.0, 24, 48));
+    let p = DecimateParams {
+        halves: super::Halves::On,
+        ..params(Method::EdgeCollapse, 600)
+    };
+    let (out, r) = decimate(&m, &p).unwrap();
+    out.check_invariants().unwrap();
+    let h = r.halves.expect("decimated in halves");
+    assert!(h.cut_vertices > 0);
+    assert_eq!(h.faces_before[0] + h.faces_before[1], m.triangles.len());
+    assert!(out.triangles.len() <= 600 && out.triangles.len() + 2 >= 600);
+    let audit = super::audit::audit(&m, &out);
+    assert_eq!(audit.after.boundary_edges, 0, "closed: {audit:?}");
+    assert_eq!(audit.after.components, 1);
+    // Every triangle still faces outwards. (Not the audit's flip count: `subdivide` leaves
+    // origins that index the sphere before it was subdivided, which the audit, given the
+    // subdivided mesh, reads as its own triangles.)
+    for t in 0..out.triangles.len() {
+        let [a, b, c] = out.triangle_positions(t);
+        assert!(
+            (b - a).cross(c - a).dot(a + b + c) > 0.0,
+            "triangle {t} faces inwards"
+        );
+    }
+}
+
+#[test]
 fn clustering_reaches_about_the_target_with_origins() {
     let m = subdivide(&uv_sphere(1.0, 24, 48));
     for method in [Method::Cluster, Method::ClusterKeep] {
