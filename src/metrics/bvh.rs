@@ -258,32 +258,22 @@ fn build(
     let (left_below, right_below) = rest.split_at_mut(sizes.descendants(mid));
     let right_offset = offset + 2 + left_below.len();
     let right_first = first_item + mid;
-    let (left, right) = if left_items.len() + right_items.len() >= PARALLEL_BUILD {
-        rayon::join(
-            || build(mesh, sizes, left_items, first_item, left_below, offset + 2),
-            || {
-                build(
-                    mesh,
-                    sizes,
-                    right_items,
-                    right_first,
-                    right_below,
-                    right_offset,
-                )
-            },
+    let parallel = left_items.len() + right_items.len() >= PARALLEL_BUILD;
+    let mut left = || build(mesh, sizes, left_items, first_item, left_below, offset + 2);
+    let mut right = || {
+        build(
+            mesh,
+            sizes,
+            right_items,
+            right_first,
+            right_below,
+            right_offset,
         )
+    };
+    let (left, right) = if parallel {
+        rayon::join(left, right)
     } else {
-        (
-            build(mesh, sizes, left_items, first_item, left_below, offset + 2),
-            build(
-                mesh,
-                sizes,
-                right_items,
-                right_first,
-                right_below,
-                right_offset,
-            ),
-        )
+        (left(), right())
     };
     pair[0] = left;
     pair[1] = right;

@@ -311,16 +311,8 @@ pub fn run(mesh: &Mesh, params: &DecimateParams, target: usize) -> Option<(Mesh,
     report.collapses += ra.collapses + rb.collapses;
     report.evaluations += ra.evaluations + rb.evaluations;
     report.ill_conditioned += ra.ill_conditioned + rb.ill_conditioned;
-    for r in [&ra.refused, &rb.refused] {
-        report.refused.link += r.link;
-        report.refused.flip += r.flip;
-        report.refused.texture_flip += r.texture_flip;
-        report.refused.degenerate += r.degenerate;
-        report.refused.seam += r.seam;
-        report.refused.boundary += r.boundary;
-        report.refused.locked += r.locked;
-        report.refused.max_error += r.max_error;
-    }
+    report.refused.add(&ra.refused);
+    report.refused.add(&rb.refused);
     report.error_reached = report
         .error_reached
         .max(ra.error_reached * sa)

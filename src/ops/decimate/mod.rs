@@ -320,6 +320,18 @@ impl RefusedCounts {
             + self.max_error
     }
 
+    /// Adds another loop's counts to these.
+    pub fn add(&mut self, o: &RefusedCounts) {
+        self.link += o.link;
+        self.flip += o.flip;
+        self.texture_flip += o.texture_flip;
+        self.degenerate += o.degenerate;
+        self.seam += o.seam;
+        self.boundary += o.boundary;
+        self.locked += o.locked;
+        self.max_error += o.max_error;
+    }
+
     pub fn count(&mut self, cause: Refusal) {
         match cause {
             Refusal::Link => self.link += 1,
