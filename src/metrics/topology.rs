@@ -117,7 +117,22 @@ pub fn compare(result: &Mesh, reference: &Mesh, crack_distance_factor: f64) -> T
         || ReferenceTopology::of(reference, crack_distance_factor),
         || TopologySnapshot::of(result),
     );
-    let cracks = count_cracks(&boundary_segments(result, &result_topology), &reference);
+    compared(result, &result_topology, after, &reference)
+}
+
+/// [`compare`] with the reference's half already made.
+pub fn compare_with_reference(result: &Mesh, reference: &ReferenceTopology) -> TopologyComparison {
+    let (after, result_topology) = TopologySnapshot::of(result);
+    compared(result, &result_topology, after, reference)
+}
+
+fn compared(
+    result: &Mesh,
+    result_topology: &Topology,
+    after: TopologySnapshot,
+    reference: &ReferenceTopology,
+) -> TopologyComparison {
+    let cracks = count_cracks(&boundary_segments(result, result_topology), reference);
     TopologyComparison {
         before: reference.snapshot,
         after,

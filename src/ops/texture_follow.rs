@@ -124,10 +124,12 @@ pub fn follow(mesh: &mut Mesh, before_positions: Vec<DVec3>) -> FollowReport {
 /// Per wedge of `before`, the texture coordinates at its vertex's new position (or none),
 /// and how many came from the corner's own triangles (across a seam).
 fn read_back(before: &Mesh, moved: &[DVec3]) -> (Vec<Option<DVec2>>, usize) {
-    let chart = charts(before);
-    // The triangles of each wedge; their chart is the wedge's (a wedge never spans a seam).
-    let around = WedgeTriangles::of(before);
-    let bvh = TriangleBvh::new(before, (0..before.triangles.len() as u32).collect());
+    // The charts and the triangles of each wedge (their chart is the wedge's: a wedge never
+    // spans a seam) are sequential; they are made beside the tree, whose build is parallel.
+    let ((chart, around), bvh) = rayon::join(
+        || rayon::join(|| charts(before), || WedgeTriangles::of(before)),
+        || TriangleBvh::new(before, (0..before.triangles.len() as u32).collect()),
+    );
     // Per wedge: new texture coordinates (or none) and whether it went across a seam.
     let updates: Vec<Option<(DVec2, bool)>> = (0..before.wedges.len())
         .into_par_iter()

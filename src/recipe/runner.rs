@@ -37,12 +37,19 @@ fn figures<T: serde::Serialize>(value: T) -> serde_json::Value {
 /// Applies one step to the mesh and returns its figures. `input` is the mesh `seam_fix`
 /// projects onto (see [`run_steps_observed`]), kept only when a step needs it.
 /// A step that replaces the mesh (`decimate`) leaves the old one in `replaced`.
+/// `fairing` is the connectivity a `relax` or `fair` step leaves for the next one.
 fn apply(
     step: &Step,
     mesh: &mut Mesh,
     input: Option<&Mesh>,
     replaced: &mut Option<Mesh>,
+    fairing: &mut Option<ops::fair::Connectivity>,
 ) -> Result<serde_json::Value, String> {
+    let mut fair = |plan: ops::fair::Plan| {
+        let (report, connectivity) = ops::fair::run_with(mesh, &plan, fairing.take());
+        *fairing = connectivity;
+        Ok(figures(report))
+    };
     match step {
         Step::Normals(p) => Ok(figures(ops::normals::recompute_normals(mesh, p))),
         Step::Crop(p) => ops::crop::crop(mesh, p)
@@ -57,8 +64,8 @@ fn apply(
             let input = input.ok_or("seam_fix needs the loaded input mesh")?;
             Ok(figures(ops::seam_fix::seam_fix(mesh, input, p)))
         }
-        Step::Relax(p) => Ok(figures(ops::fair::relax(mesh, p))),
-        Step::Fair(p) => Ok(figures(ops::fair::fair(mesh, p))),
+        Step::Relax(p) => fair(p.plan()),
+        Step::Fair(p) => fair(p.plan()),
         Step::Smooth(p) => Ok(figures(ops::smooth::smooth(mesh, p))),
     }
 }
@@ -102,12 +109,13 @@ pub struct RunOutcome {
 /// cracks. The thesis compares its decimations with the cropped scans too
 /// (spec/decimation.md §8.1). `metrics.reference` in the JSON says which it was.
 ///
-/// What the metrics need of the reference alone (its topology, closest-point index and
-/// samples, [`PreparedReference`]) is prepared on a thread of its own from the start of
-/// the first decimation after the last crop: the decimation's collapse loop is sequential
-/// and leaves the other core idle (400k-triangle face: about 0.4 s of the whole run's wall
-/// time hidden this way). It starts no earlier so that it does not add to the memory peak
-/// of `relax` and `fair`.
+/// What the metrics need of the reference alone (its closest-point index and samples,
+/// [`PreparedReference`]) is prepared on a thread of its own from the start of the first
+/// decimation after the last crop, unless that decimation runs in halves: a one-pass
+/// collapse loop is sequential and leaves the other core idle (400k-triangle face: about
+/// 0.4 s of the whole run's wall time hidden this way). It starts no earlier so that it
+/// does not add to the memory peak of `relax` and `fair`. Otherwise it is prepared after
+/// the steps, the reference's topology beside its index.
 pub fn run_recipe(
     recipe: &Recipe,
     mesh: &mut Mesh,
@@ -167,7 +175,9 @@ pub fn run_recipe(
             Some(thread) => thread
                 .join()
                 .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
-            None => PreparedReference::new(reference, &options),
+            // After the steps the memory peak is past: the reference's topology is
+            // prepared too, beside its index.
+            None => PreparedReference::with_topology(reference, &options),
         });
         // The preparation's threads freed their working memory in arenas of their own.
         crate::memory::release_freed();
@@ -293,6 +303,9 @@ fn run_steps_observed(
     // scanned rather than onto an intermediate one. It is done early when a step asks for
     // its own metrics, so that those see the texture where it belongs.
     let mut follow_from: Option<Vec<glam::DVec3>> = None;
+    // Kept from one fairing step to the next only (`relax` then `fair`): no other step
+    // uses it, and it must not add to the memory of the decimation after them.
+    let mut fairing = None;
     for (i, step) in recipe.steps.iter().enumerate() {
         observe(i, When::Before, step, mesh);
         let before = recipe.step_metrics.contains(&(i + 1)).then(|| mesh.clone());
@@ -305,14 +318,18 @@ fn run_steps_observed(
             follow_from = Some(mesh.positions.clone());
         }
         let mut replaced = None;
-        let mut figures =
-            apply(step, mesh, seam_reference.as_deref(), &mut replaced).map_err(|message| {
-                StepError {
-                    index: i + 1,
-                    kind: step.kind(),
-                    message,
-                }
-            })?;
+        let mut figures = apply(
+            step,
+            mesh,
+            seam_reference.as_deref(),
+            &mut replaced,
+            &mut fairing,
+        )
+        .map_err(|message| StepError {
+            index: i + 1,
+            kind: step.kind(),
+            message,
+        })?;
         // The mesh the decimation started from becomes the snapshot (no copy of it is
         // made: the decimator needed it whole until its output was built anyway).
         if let Some(old) = replaced
@@ -320,6 +337,12 @@ fn run_steps_observed(
             && seam_reference.is_some()
         {
             seam_reference = Some(Arc::new(old));
+        }
+        if !matches!(
+            recipe.steps.get(i + 1),
+            Some(Step::Relax(_) | Step::Fair(_))
+        ) {
+            fairing = None;
         }
         let run_goes_on = recipe.steps.get(i + 1).is_some_and(moves_vertices);
         if (!run_goes_on || before.is_some())

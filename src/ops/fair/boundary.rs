@@ -11,7 +11,7 @@ use super::guards::{Fan, GuardCounts, Reference, guarded_move};
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::{self, Phase, PhaseParams, RunStats, Sweep};
-use crate::mesh::Topology;
+use crate::mesh::BoundaryChain;
 use glam::DVec3;
 
 /// Boundary walks shorter than this are held still. The curve step keeps a vertex on the
@@ -66,10 +66,10 @@ pub struct BoundaryCurve {
 /// (only next to inconsistently oriented or non-manifold edges) is an open curve whose ends
 /// stay (§2.9). Walks of fewer than [`MIN_CURVE_VERTICES`] vertices are returned as `held`
 /// instead.
-pub fn boundary_curves(topo: &Topology, fixed: &[bool]) -> (Vec<BoundaryCurve>, Vec<u32>) {
+pub fn boundary_curves(chains: &[BoundaryChain], fixed: &[bool]) -> (Vec<BoundaryCurve>, Vec<u32>) {
     let mut curves = Vec::new();
     let mut held = Vec::new();
-    for chain in topo.boundary_chains() {
+    for chain in chains {
         if chain.vertices.len() < MIN_CURVE_VERTICES {
             held.extend_from_slice(&chain.vertices);
             continue;
@@ -183,7 +183,8 @@ mod tests {
     fn grid_has_one_closed_boundary_curve() {
         let m = shapes::grid(4, 3);
         let topo = m.topology();
-        let (curves, held) = boundary_curves(&topo, &vec![false; m.positions.len()]);
+        let (curves, held) =
+            boundary_curves(topo.boundary_chains(), &vec![false; m.positions.len()]);
         assert_eq!(curves.len(), 1);
         assert!(curves[0].closed);
         assert_eq!(curves[0].vertices.len(), 14);
@@ -203,7 +204,7 @@ mod tests {
         }
         let topo = m.topology();
         let nb = Neighbourhood::new(&topo);
-        let (curves, _) = boundary_curves(&topo, &vec![false; m.positions.len()]);
+        let (curves, _) = boundary_curves(topo.boundary_chains(), &vec![false; m.positions.len()]);
         let before = m.positions.clone();
         let mut guards = GuardCounts::default();
         let params = PhaseParams {

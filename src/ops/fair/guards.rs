@@ -7,6 +7,7 @@ use super::neighbourhood::Neighbourhood;
 use super::positive;
 use crate::mesh::{Mesh, Topology};
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Quality `4√3·area / Σ edge²` (1 for an equilateral triangle, 0 for a degenerate one)
@@ -269,6 +270,7 @@ impl GuardCounts {
 /// Every triangle's normal (cross product) at `positions`.
 pub fn triangle_normals(mesh: &Mesh, positions: &[DVec3]) -> Vec<DVec3> {
     (0..mesh.triangles.len())
+        .into_par_iter()
         .map(|t| {
             let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
             (b - a).cross(c - a)
@@ -290,7 +292,7 @@ pub fn triangle_normals(mesh: &Mesh, positions: &[DVec3]) -> Vec<DVec3> {
 pub fn triangle_references(
     mesh: &Mesh,
     positions: &[DVec3],
-    is_border: impl Fn(u32) -> bool,
+    is_border: impl Fn(u32) -> bool + Sync,
 ) -> Vec<Reference> {
     let normals = triangle_normals(mesh, positions);
     let mut at_vertex = vec![DVec3::ZERO; positions.len()];
@@ -299,7 +301,10 @@ pub fn triangle_references(
             at_vertex[v as usize] += *n;
         }
     }
+    // The sums per vertex stay sequential (their order is their rounding); the rest is
+    // per triangle.
     (0..mesh.triangles.len())
+        .into_par_iter()
         .map(|t| {
             let vs = mesh.triangle_vertices(t);
             Reference::new(

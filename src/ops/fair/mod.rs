@@ -26,7 +26,7 @@ pub mod neighbourhood;
 pub mod schedule;
 pub mod surface;
 
-use crate::mesh::Mesh;
+use crate::mesh::{BoundaryChain, Mesh, Topology};
 use glam::DVec3;
 use guards::{FixedCounts, GuardCounts};
 use neighbourhood::Neighbourhood;
@@ -365,8 +365,64 @@ pub fn relax(mesh: &mut Mesh, params: &RelaxParams) -> FairReport {
     run(mesh, &params.plan())
 }
 
+/// What a fairing step builds of the mesh's connectivity: every vertex's ordered ring and
+/// fan, and the boundary chains. `relax` and `fair` move positions only, so the next of
+/// them on the same mesh can start from the last one's instead of building the topology
+/// and the rings again (on the 400k-triangle face about 260 ms of mostly sequential work,
+/// issue #8). It knows the triangles it was built from and is used only on the same ones.
+#[derive(Debug, Clone)]
+pub struct Connectivity {
+    nb: Neighbourhood,
+    chains: Vec<BoundaryChain>,
+    /// The triangles' vertices it was built from, as a fingerprint.
+    triangles: usize,
+    fingerprint: u64,
+}
+
+impl Connectivity {
+    fn build(mesh: &Mesh, topo: &Topology) -> Connectivity {
+        Connectivity {
+            nb: Neighbourhood::new(topo),
+            chains: topo.boundary_chains().to_vec(),
+            triangles: mesh.triangles.len(),
+            fingerprint: triangle_fingerprint(mesh),
+        }
+    }
+
+    /// Whether it describes `mesh`'s triangles (same count, same vertices in order).
+    fn fits(&self, mesh: &Mesh) -> bool {
+        self.nb.vertex_count() == mesh.positions.len()
+            && self.triangles == mesh.triangles.len()
+            && self.fingerprint == triangle_fingerprint(mesh)
+    }
+}
+
+/// A hash of the triangles' vertex indices in order (FNV-1a over the indices; ~3 ms for
+/// 400k triangles). Positions, wedges and texture coordinates do not enter: the rings and
+/// chains depend on the vertex indices alone.
+fn triangle_fingerprint(mesh: &Mesh) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for t in 0..mesh.triangles.len() {
+        for v in mesh.triangle_vertices(t) {
+            h = (h ^ u64::from(v)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
 /// Runs a plan on a mesh. Never fails: degenerate or non-manifold parts are held still.
 pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
+    run_with(mesh, plan, None).0
+}
+
+/// [`run`], starting from the connectivity a previous `relax` or `fair` on the same
+/// triangles left (built afresh when there is none or it does not fit), and returning the
+/// connectivity for the next.
+pub fn run_with(
+    mesh: &mut Mesh,
+    plan: &Plan,
+    carried: Option<Connectivity>,
+) -> (FairReport, Option<Connectivity>) {
     let start = Instant::now();
     let mut report = FairReport {
         schedule: plan.schedule,
@@ -375,14 +431,19 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
     };
     let n = mesh.positions.len();
     if n == 0 || mesh.triangles.is_empty() {
-        return report;
+        return (report, None);
     }
-    let topo = mesh.topology();
-    let nb = Neighbourhood::new(&topo);
+    // The full topology is needed only to build the connectivity and for creases.
+    let mut topo = None;
+    let connectivity = match carried.filter(|c| c.fits(mesh)) {
+        Some(c) => c,
+        None => Connectivity::build(mesh, topo.insert(mesh.topology())),
+    };
+    let nb = &connectivity.nb;
     let input = mesh.positions.clone();
     let scale = mesh.mean_edge_length();
     if !positive(scale) {
-        return report;
+        return (report, Some(connectivity));
     }
 
     // Which vertices stay fixed, and why.
@@ -403,7 +464,8 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         }
     }
     if let Some(angle) = plan.feature_angle {
-        for (v, c) in guards::crease_vertices(mesh, &topo, angle)
+        let topo = topo.get_or_insert_with(|| mesh.topology());
+        for (v, c) in guards::crease_vertices(mesh, topo, angle)
             .into_iter()
             .enumerate()
         {
@@ -415,7 +477,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
     }
     let limit = plan
         .max_valence
-        .unwrap_or_else(|| guards::default_valence_limit(&nb));
+        .unwrap_or_else(|| guards::default_valence_limit(nb));
     report.valence_limit = limit;
     // A hub and its whole 1-ring: fixing the hub alone does not save the vase (§3.8.1):
     // its neighbours' curvature is dominated by the hub's long triangles, whose squared
@@ -442,7 +504,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
     let mut movable_total = 0usize;
 
     // C: boundary curves first, completely (§4.5, App. B default).
-    let (curves, held) = boundary::boundary_curves(&topo, &fixed);
+    let (curves, held) = boundary::boundary_curves(&connectivity.chains, &fixed);
     let boundary_fair = plan.boundary == BoundaryMode::Fair
         && plan.curve.max_iterations > 0
         && plan.curve.t_h + plan.curve.t_u > 0;
@@ -451,7 +513,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         for c in &curves {
             let s = boundary::fair_boundary_curve(
                 &mut positions,
-                &nb,
+                nb,
                 c,
                 &plan.curve,
                 plan.epsilon,
@@ -486,7 +548,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         .map(|t| mesh.triangle_vertices(t))
         .collect();
     let interior = surface::Interior {
-        nb: &nb,
+        nb,
         movable: &movable,
         movable_count,
         triangles: &triangles,
@@ -563,7 +625,7 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
         0.0
     };
     tracing::debug!(?report, "fairing done");
-    report
+    (report, Some(connectivity))
 }
 
 /// `x > 0`, false for NaN: degenerate-geometry tests written so that NaN counts as
