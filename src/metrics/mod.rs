@@ -174,6 +174,11 @@ impl<'a> PreparedReference<'a> {
         self.index.mesh()
     }
 
+    /// Whether the reference's topology was prepared too ([`PreparedReference::with_topology`]).
+    pub fn has_topology(&self) -> bool {
+        self.topology.is_some()
+    }
+
     /// The closest-point index over the reference's surface.
     pub fn index(&self) -> &surface::SurfaceIndex<'a> {
         &self.index

@@ -158,8 +158,11 @@ pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFi
     // For in-place repairs: the input's charts, a closest-point index over it, and the
     // triangles around each wedge of the result.
     let finite = input.positions.iter().all(|p| p.is_finite());
-    let input_charts = charts(input);
-    let bvh = finite.then(|| TriangleBvh::new(input, (0..input.triangles.len() as u32).collect()));
+    // The charts are sequential; they are made beside the tree, whose build is parallel.
+    let (input_charts, bvh) = rayon::join(
+        || charts(input),
+        || finite.then(|| TriangleBvh::new(input, (0..input.triangles.len() as u32).collect())),
+    );
     let around = WedgeTriangles::of(mesh);
     let shared_fix = |w: Index| -> Option<DVec2> {
         let bvh = bvh.as_ref()?;

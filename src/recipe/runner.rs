@@ -181,7 +181,7 @@ pub fn run_recipe(
         });
         // The preparation's threads freed their working memory in arenas of their own.
         crate::memory::release_freed();
-        let metrics = match &prepared {
+        let measure = || match &prepared {
             None => Value::Null,
             Some(Err(e)) => metrics_error(e),
             Some(Ok(prepared)) => {
@@ -198,12 +198,10 @@ pub fn run_recipe(
                 }
             }
         };
-        // After the metrics, not beside them: both at once would save about 140 ms on the
-        // 400k-triangle face, but the metrics' reference topology (~40 MB) and the preview's
-        // buffers would then be alive together, and the run's peak would go from 148 to
-        // 169 MB, over issue #8's 400 bytes per input triangle.
-        crate::memory::release_freed();
-        let preview = recipe.preview.enabled.then(|| {
+        let draw = || {
+            if !recipe.preview.enabled {
+                return None;
+            }
             progress.stage(first_stage + recipe.steps.len(), total_stages, "preview");
             let drawn = match &prepared {
                 Some(Ok(prepared)) => {
@@ -215,11 +213,24 @@ pub fn run_recipe(
                 .inspect(|p| tracing::info!(ms = p.figures.render_ms, "preview drawn"))
                 .inspect_err(|e| tracing::warn!(error = %e, "no preview"))
                 .ok()
-        });
+        };
+        // Side by side when the reference's topology is prepared already: each is parallel
+        // inside but leaves part of the second core idle, and neither reads what the other
+        // computes. Otherwise one after the other: the metrics then build the reference's
+        // topology (~40 MB on the 400k-triangle face), which with the preview's buffers
+        // took the run's peak from 148 to 169 MB, over issue #8's 400 bytes per triangle.
+        let side_by_side = matches!(&prepared, Some(Ok(p)) if p.has_topology());
+        let (metrics, preview) = if side_by_side {
+            rayon::join(measure, draw)
+        } else {
+            let metrics = measure();
+            crate::memory::release_freed();
+            (metrics, draw())
+        };
         Ok(RunOutcome {
             steps,
             metrics,
-            preview: preview.flatten(),
+            preview,
         })
     })
 }
