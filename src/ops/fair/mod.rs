@@ -684,6 +684,57 @@ mod tests {
         }
     }
 
+    /// A grid (so with a border) with its interior and border jagged.
+    fn jagged_grid() -> Mesh {
+        let mut m = crate::mesh::shapes::grid(10, 8);
+        for (i, p) in m.positions.iter_mut().enumerate() {
+            let k = i as f64;
+            *p += DVec3::new(
+                0.2 * (k * 1.7).sin(),
+                0.2 * (k * 2.3).cos(),
+                0.3 * (k * 0.9).sin(),
+            );
+        }
+        m
+    }
+
+    #[test]
+    fn carried_connectivity_gives_the_same_result_and_is_rebuilt_when_it_does_not_fit() {
+        let relax_plan = RelaxParams::default().plan();
+        let fair_plan = FairParams {
+            max_iterations: 100,
+            ..FairParams::default()
+        }
+        .plan();
+        // Each step on its own, building everything.
+        let mut fresh = jagged_grid();
+        let fresh_relax = run(&mut fresh, &relax_plan);
+        let fresh_fair = run(&mut fresh, &fair_plan);
+        // relax handing its connectivity to fair.
+        let mut carried = jagged_grid();
+        let (relax_report, connectivity) = run_with(&mut carried, &relax_plan, None);
+        let connectivity = connectivity.expect("relax returns its connectivity");
+        assert!(connectivity.fits(&carried));
+        let (fair_report, _) = run_with(&mut carried, &fair_plan, Some(connectivity.clone()));
+        assert_eq!(carried.positions, fresh.positions);
+        assert_eq!(relax_report.vertex_updates, fresh_relax.vertex_updates);
+        assert_eq!(fair_report.vertex_updates, fresh_fair.vertex_updates);
+        assert_eq!(fair_report.boundary_curves, 1);
+
+        // Another mesh's connectivity does not fit and is not used.
+        let mut other = crate::mesh::shapes::uv_sphere(1.0, 6, 8);
+        assert!(!connectivity.fits(&other));
+        let mut other_fresh = other.clone();
+        run(&mut other_fresh, &fair_plan);
+        let (_, rebuilt) = run_with(&mut other, &fair_plan, Some(connectivity.clone()));
+        assert_eq!(other.positions, other_fresh.positions);
+        assert!(rebuilt.is_some_and(|c| c.fits(&other)));
+        // Same counts, other triangles: the fingerprint tells them apart.
+        let mut flipped = jagged_grid();
+        flipped.triangles.swap(0, 1);
+        assert!(!connectivity.fits(&flipped));
+    }
+
     #[test]
     fn empty_and_degenerate_meshes_do_nothing() {
         let mut m = Mesh::default();
