@@ -14,13 +14,14 @@
 //!
 //! `cargo run --release --example bilap_probe` (`FP_SCANS=lucy,igea` to choose scans).
 
-use glam::DVec3;
-use scanmill::mesh::{LoadOptions, Mesh, Topology, io};
-use scanmill::metrics::distance::surface_distance;
-use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
-use std::path::Path;
+#[path = "common/noise_protocol.rs"]
+mod noise_protocol;
 
-const DATA: &str = "../shared/data";
+use glam::DVec3;
+use noise_protocol::{SCANS, load, noisy, taubin, umbrella, wanted};
+use scanmill::mesh::{Mesh, Topology};
+use scanmill::metrics::distance::surface_distance;
+
 const SAMPLES: usize = 100_000;
 /// Explicit step of the bi-Laplacian flow: stable below 1/8 for the umbrella operator's
 /// spectrum in [−2, 0].
@@ -28,43 +29,6 @@ const STEP: f64 = 0.1;
 /// Flow times λT printed (in units of the thesis' λ × iterations: the face-scan recipe's
 /// 400 curvature iterations at λ = 0.01 are λT = 4).
 const TIMES: [f64; 6] = [1.0, 2.0, 3.0, 4.0, 6.0, 8.0];
-
-fn load(rel: &str) -> Mesh {
-    let path = Path::new(DATA).join(rel);
-    let options = LoadOptions {
-        check_textures: false,
-        ..Default::default()
-    };
-    io::load(&path, &options)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .0
-}
-
-/// Umbrella operator `(L x)_v = mean of the neighbours − x_v`, every vertex with
-/// neighbours (as the Taubin reference of tests/fair_scans.rs).
-fn umbrella(topo: &Topology, x: &[DVec3]) -> Vec<DVec3> {
-    (0..x.len())
-        .map(|v| {
-            let nb = topo.vertex_neighbours(v as u32);
-            if nb.is_empty() {
-                return DVec3::ZERO;
-            }
-            nb.iter().map(|&j| x[j as usize]).sum::<DVec3>() / nb.len() as f64 - x[v]
-        })
-        .collect()
-}
-
-/// Taubin λ|μ, `passes` umbrella passes (spec/smoothing.md §5 counts one pass as one
-/// iteration; the `smooth` step and MeshLab count λ+μ pairs).
-fn taubin(topo: &Topology, mesh: &mut Mesh, passes: usize) {
-    for k in 0..passes {
-        let f = if k % 2 == 0 { 0.53 } else { -0.54 };
-        let l = umbrella(topo, &mesh.positions);
-        for (p, d) in mesh.positions.iter_mut().zip(l) {
-            *p += f * d;
-        }
-    }
-}
 
 /// Squared mean edge length around each vertex.
 fn local_scale(topo: &Topology, x: &[DVec3]) -> Vec<f64> {
@@ -103,39 +67,19 @@ fn bilaplacian_step(topo: &Topology, mesh: &mut Mesh, scaled: bool) {
 }
 
 fn main() {
-    let all = [
-        ("facefuns", "textured/facefuns_di3d_face/example.obj"),
-        ("lucy", "untextured/misc_scans/stanford_lucy_100k.ply"),
-        (
-            "igea",
-            "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
-        ),
-        ("bunny", "untextured/stanford_bunny/bun_zipper.ply"),
-    ];
-    let wanted = std::env::var("FP_SCANS").ok();
-    for (name, rel) in all {
-        if wanted
-            .as_ref()
-            .is_some_and(|w| !w.split(',').any(|x| x == name))
-        {
+    for (name, rel) in SCANS {
+        if !wanted(name) {
             continue;
         }
         let clean = load(rel);
         let topo = clean.topology();
-        let (noisy, _) = noisy_copy(
-            &clean,
-            &NoiseOptions {
-                sigma_factor: 0.2,
-                seed: 1,
-                ..NoiseOptions::default()
-            },
-        );
+        let noisy = noisy(&clean);
         let dist = |m: &Mesh| surface_distance(m, &clean, SAMPLES, 7).unwrap().mean;
         let dn = dist(&noisy);
         let mut t13 = noisy.clone();
-        taubin(&topo, &mut t13, 13);
+        taubin(&mut t13, 0.53, -0.54, 13);
         let mut t26 = noisy.clone();
-        taubin(&topo, &mut t26, 26);
+        taubin(&mut t26, 0.53, -0.54, 26);
         let (d13, d26) = (dist(&t13), dist(&t26));
         println!(
             "{name}: Taubin 13 passes {:.3} of noisy, 13 pairs {:.3} of noisy",

@@ -10,47 +10,18 @@
 //!   `fixed`), `FP_SAMPLES` (default 100000);
 //! - `FP_REGIONS=1`: split the per-vertex distance by the number of edges to the border.
 
-use glam::DVec3;
-use scanmill::mesh::{LoadOptions, Mesh, io};
+#[path = "common/noise_protocol.rs"]
+mod noise_protocol;
+
+use noise_protocol::{SCANS, load, noisy, taubin, wanted};
+use scanmill::mesh::Mesh;
 use scanmill::metrics::distance::{surface_distance, vertex_distances};
-use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
 use scanmill::metrics::volume;
 use scanmill::ops::fair::{self, BoundaryMode, FairParams, RelaxParams, Schedule};
-use std::path::Path;
 use std::time::Instant;
-
-const DATA: &str = "../shared/data";
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
     std::env::var(name).ok().and_then(|s| s.parse().ok())
-}
-
-fn load(rel: &str) -> Mesh {
-    let path = Path::new(DATA).join(rel);
-    let options = LoadOptions {
-        check_textures: false,
-        ..Default::default()
-    };
-    io::load(&path, &options)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .0
-}
-
-fn taubin(mesh: &mut Mesh, lambda: f64, mu: f64, passes: usize) {
-    let topo = mesh.topology();
-    let mut old = mesh.positions.clone();
-    for k in 0..passes {
-        let f = if k % 2 == 0 { lambda } else { mu };
-        old.copy_from_slice(&mesh.positions);
-        for (v, p) in mesh.positions.iter_mut().enumerate() {
-            let nb = topo.vertex_neighbours(v as u32);
-            if nb.is_empty() {
-                continue;
-            }
-            let avg = nb.iter().map(|&j| old[j as usize]).sum::<DVec3>() / nb.len() as f64;
-            *p = old[v] + f * (avg - old[v]);
-        }
-    }
 }
 
 /// Edges from each vertex to the nearest border vertex (u32::MAX without a border).
@@ -137,16 +108,6 @@ fn regions(mesh: &Mesh, clean: &Mesh, hops: &[u32]) -> String {
 }
 
 fn main() {
-    let all = [
-        ("facefuns", "textured/facefuns_di3d_face/example.obj"),
-        ("lucy", "untextured/misc_scans/stanford_lucy_100k.ply"),
-        (
-            "igea",
-            "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
-        ),
-        ("bunny", "untextured/stanford_bunny/bun_zipper.ply"),
-    ];
-    let wanted: Option<String> = env("FP_SCANS");
     let samples: usize = env("FP_SAMPLES").unwrap_or(100_000);
     let mut params = FairParams::default();
     if let Some(x) = env("FP_LAMBDA") {
@@ -190,33 +151,22 @@ fn main() {
         params.schedule,
         params.boundary
     );
-    for (name, rel) in all {
-        if wanted
-            .as_ref()
-            .is_some_and(|w| !w.split(',').any(|x| x == name))
-        {
+    for (name, rel) in SCANS {
+        if !wanted(name) {
             continue;
         }
         let clean = load(rel);
-        let (noisy, _) = noisy_copy(
-            &clean,
-            &NoiseOptions {
-                sigma_factor: 0.2,
-                seed: 1,
-                ..NoiseOptions::default()
-            },
-        );
+        // FP_CLEAN=1: fair the clean scan instead, to see the shape change alone.
+        let noisy = if env::<u32>("FP_CLEAN") == Some(1) {
+            clean.clone()
+        } else {
+            noisy(&clean)
+        };
         let dist = |m: &Mesh| surface_distance(m, &clean, samples, 7).unwrap().mean;
         let vol = |m: &Mesh| {
             volume::compare(m, &clean)
                 .change_percent
                 .map_or("open".to_string(), |v| format!("{v:+.3}%"))
-        };
-        // FP_CLEAN=1: fair the clean scan instead, to see the shape change alone.
-        let noisy = if env::<u32>("FP_CLEAN") == Some(1) {
-            clean.clone()
-        } else {
-            noisy
         };
         let mut t = noisy.clone();
         taubin(&mut t, 0.53, -0.54, 13);
