@@ -100,7 +100,8 @@ impl MeshSummary {
     }
 }
 
-fn count_degenerate(mesh: &Mesh) -> usize {
+/// Triangles that repeat a vertex or have zero area.
+pub fn count_degenerate(mesh: &Mesh) -> usize {
     (0..mesh.triangles.len())
         .filter(|&t| {
             let [a, b, c] = mesh.triangle_vertices(t);

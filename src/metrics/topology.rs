@@ -9,7 +9,7 @@
 //! well under two input edges; an opened seam or hole in the middle of the surface is
 //! farther than that from any border.
 
-use crate::mesh::{Mesh, MeshSummary, Topology, TopologyCounts};
+use crate::mesh::{Mesh, Topology, TopologyCounts, summary};
 use glam::DVec3;
 use parry3d_f64::math::Vector as PVector;
 use parry3d_f64::query::PointQuery;
@@ -28,14 +28,17 @@ pub struct TopologySnapshot {
 impl TopologySnapshot {
     pub fn of(mesh: &Mesh) -> (Self, Topology) {
         let topology = Topology::new(mesh);
-        let summary = MeshSummary::with_topology(mesh, &topology, None);
-        (
-            TopologySnapshot {
-                counts: summary.topology,
-                degenerate_triangles: summary.degenerate_triangles,
-            },
-            topology,
-        )
+        (Self::with(mesh, &topology), topology)
+    }
+
+    /// The snapshot of `mesh` from its topology, built already. Only the counts the
+    /// snapshot keeps are taken (not a whole [`crate::mesh::MeshSummary`], whose
+    /// duplicate-triangle count sorts every triangle).
+    pub fn with(mesh: &Mesh, topology: &Topology) -> Self {
+        TopologySnapshot {
+            counts: topology.counts(),
+            degenerate_triangles: summary::count_degenerate(mesh),
+        }
     }
 }
 
@@ -74,9 +77,18 @@ pub struct ReferenceTopology {
 
 impl ReferenceTopology {
     pub fn of(reference: &Mesh, crack_distance_factor: f64) -> Self {
-        let (snapshot, topology) = TopologySnapshot::of(reference);
-        let segments = boundary_segments(reference, &topology);
-        drop(topology);
+        Self::from_topology(reference, &Topology::new(reference), crack_distance_factor)
+    }
+
+    /// [`ReferenceTopology::of`] from the reference's topology, built already (the recipe
+    /// runner takes it from the first fairing step, which builds it anyway).
+    pub fn from_topology(
+        reference: &Mesh,
+        topology: &Topology,
+        crack_distance_factor: f64,
+    ) -> Self {
+        let snapshot = TopologySnapshot::with(reference, topology);
+        let segments = boundary_segments(reference, topology);
         let boundary = (!segments.is_empty()).then(|| {
             let vertices: Vec<PVector> = segments
                 .iter()

@@ -380,7 +380,8 @@ pub struct Connectivity {
 }
 
 impl Connectivity {
-    fn build(mesh: &Mesh, topo: &Topology) -> Connectivity {
+    /// The connectivity of `mesh`, whose topology `topo` is.
+    pub fn of(mesh: &Mesh, topo: &Topology) -> Connectivity {
         Connectivity {
             nb: Neighbourhood::new(topo),
             chains: topo.boundary_chains().to_vec(),
@@ -437,7 +438,7 @@ pub fn run_with(
     let mut topo = None;
     let connectivity = match carried.filter(|c| c.fits(mesh)) {
         Some(c) => c,
-        None => Connectivity::build(mesh, topo.insert(mesh.topology())),
+        None => Connectivity::of(mesh, topo.insert(mesh.topology())),
     };
     let nb = &connectivity.nb;
     let input = mesh.positions.clone();
