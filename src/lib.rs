@@ -3,6 +3,7 @@
 pub mod compare;
 pub mod config;
 pub mod daemon;
+pub mod idle;
 pub mod memory;
 pub mod mesh;
 pub mod metrics;
