@@ -20,4 +20,4 @@ pub use error::{Location, MeshError};
 pub use io::{SaveOptions, load, save};
 pub use model::{Index, Material, Mesh, Texture, Wedge};
 pub use summary::MeshSummary;
-pub use topology::{BoundaryChain, EdgeKind, OrderedRing, Topology, TopologyCounts};
+pub use topology::{BoundaryChain, EdgeKind, OrderedRing, RingBuffers, Topology, TopologyCounts};

@@ -51,7 +51,7 @@ mod tests;
 mod union_find;
 
 pub use boundary::BoundaryChain;
-pub use ring::OrderedRing;
+pub use ring::{OrderedRing, RingBuffers};
 
 use super::model::Mesh;
 use serde::Serialize;
@@ -169,10 +169,20 @@ impl Topology {
             .iter()
             .flat_map(|tri| tri.map(|w| mesh.wedges[w as usize].vertex))
             .collect();
-        let (vertex_corner_offsets, vertex_corner_list) =
-            vertex_corners_csr(vertex_count, &corner_vertices);
-        let (edges, edge_side_offsets, edge_side_list, side_edges) =
-            build_edges(vertex_count, &corner_vertices);
+        // Independent passes over the corners, side by side (each is a sequential counting
+        // sort or union-find: ~15, ~60 and ~10 ms on a 400k-triangle scan).
+        let (
+            ((vertex_corner_offsets, vertex_corner_list), (triangle_components, component_count)),
+            (edges, edge_side_offsets, edge_side_list, side_edges),
+        ) = rayon::join(
+            || {
+                rayon::join(
+                    || vertex_corners_csr(vertex_count, &corner_vertices),
+                    || components(vertex_count, &corner_vertices),
+                )
+            },
+            || build_edges(vertex_count, &corner_vertices),
+        );
         let (neighbour_offsets, neighbour_list) = neighbours_csr(vertex_count, &edges);
 
         let mut topo = Topology {
@@ -193,8 +203,8 @@ impl Topology {
             non_manifold_vertices: Vec::new(),
             boundary_chains: Vec::new(),
             boundary_loop_count: 0,
-            triangle_components: Vec::new(),
-            component_count: 0,
+            triangle_components,
+            component_count,
             boundary_edge_count: 0,
             non_manifold_edge_count: 0,
             inconsistent_edge_count: 0,
@@ -202,7 +212,6 @@ impl Topology {
             texture_seam_edge_count: 0,
         };
         topo.classify_edges_and_fans(mesh);
-        topo.find_components();
         (topo.boundary_chains, topo.boundary_loop_count) = boundary::trace_chains(&topo);
         topo
     }
@@ -290,30 +299,6 @@ impl Topology {
             flags |= EDGE_TEXTURE_SEAM;
         }
         flags
-    }
-
-    /// Components through shared vertices, numbered by their lowest triangle.
-    fn find_components(&mut self) {
-        let mut sets = UnionFind::new(self.vertex_flags.len());
-        for tri in self.corner_vertices.chunks_exact(3) {
-            sets.union(tri[0], tri[1]);
-            sets.union(tri[0], tri[2]);
-        }
-        let mut component_of_root = vec![u32::MAX; self.vertex_flags.len()];
-        let mut count = 0u32;
-        self.triangle_components = self
-            .corner_vertices
-            .chunks_exact(3)
-            .map(|tri| {
-                let root = sets.find(tri[0]) as usize;
-                if component_of_root[root] == u32::MAX {
-                    component_of_root[root] = count;
-                    count += 1;
-                }
-                component_of_root[root]
-            })
-            .collect();
-        self.component_count = count as usize;
     }
 
     // ----- sizes -----
@@ -574,6 +559,30 @@ pub(crate) fn next_corner(c: u32) -> u32 {
 #[inline]
 pub(crate) fn prev_corner(c: u32) -> u32 {
     if c.is_multiple_of(3) { c + 2 } else { c - 1 }
+}
+
+/// Components through shared vertices, numbered by their lowest triangle: each triangle's
+/// component, and how many there are.
+fn components(vertex_count: usize, corner_vertices: &[u32]) -> (Vec<u32>, usize) {
+    let mut sets = UnionFind::new(vertex_count);
+    for tri in corner_vertices.chunks_exact(3) {
+        sets.union(tri[0], tri[1]);
+        sets.union(tri[0], tri[2]);
+    }
+    let mut component_of_root = vec![u32::MAX; vertex_count];
+    let mut count = 0u32;
+    let triangle_components = corner_vertices
+        .chunks_exact(3)
+        .map(|tri| {
+            let root = sets.find(tri[0]) as usize;
+            if component_of_root[root] == u32::MAX {
+                component_of_root[root] = count;
+                count += 1;
+            }
+            component_of_root[root]
+        })
+        .collect();
+    (triangle_components, count as usize)
 }
 
 /// Vertex → corners by counting sort; corners come out ascending per vertex.

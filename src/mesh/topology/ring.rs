@@ -19,17 +19,52 @@ pub struct OrderedRing {
     pub closed: bool,
 }
 
+/// Reusable buffers for [`Topology::ordered_ring_into`]: building every vertex's ring with
+/// one set of these allocates nothing per vertex.
+#[derive(Debug, Default)]
+pub struct RingBuffers {
+    ahead: Vec<u32>,
+    behind: Vec<u32>,
+    spokes: Vec<(u32, u32)>,
+    /// The ring's vertices and triangles after a successful call (see [`OrderedRing`]).
+    pub vertices: Vec<u32>,
+    pub triangles: Vec<u32>,
+}
+
 impl Topology {
     /// The ordered 1-ring of `v`, or `None` if `v` is non-manifold (see the module
     /// documentation), used by no triangle, or on a triangle that repeats a vertex.
     pub fn ordered_ring(&self, v: u32) -> Option<OrderedRing> {
+        let mut buffers = RingBuffers::default();
+        let closed = self.ordered_ring_into(v, &mut buffers)?;
+        Some(OrderedRing {
+            vertices: buffers.vertices,
+            triangles: buffers.triangles,
+            closed,
+        })
+    }
+
+    /// [`Topology::ordered_ring`] into `buffers.vertices` and `buffers.triangles`;
+    /// returns whether the fan is closed, `None` where `ordered_ring` gives `None` (the
+    /// buffers' contents are then unspecified).
+    pub fn ordered_ring_into(&self, v: u32, buffers: &mut RingBuffers) -> Option<bool> {
+        let RingBuffers {
+            ahead,
+            behind,
+            spokes,
+            vertices,
+            triangles,
+        } = buffers;
+        ahead.clear();
+        behind.clear();
+        spokes.clear();
+        vertices.clear();
+        triangles.clear();
         let corners = self.vertex_corners(v);
         if corners.is_empty() || self.is_non_manifold_vertex(v) {
             return None;
         }
         // Triangle i (the i-th corner at v) is (v, ahead[i], behind[i]) in its orientation.
-        let mut ahead = Vec::with_capacity(corners.len());
-        let mut behind = Vec::with_capacity(corners.len());
         for &c in corners {
             let (a, b) = (
                 self.corner_vertex(next_corner(c)),
@@ -42,10 +77,12 @@ impl Topology {
             behind.push(b);
         }
         // (spoke vertex, triangle slot), sorted: the triangles on edge (v, spoke) are adjacent.
-        let mut spokes: Vec<(u32, u32)> = (0..corners.len() as u32)
-            .flat_map(|i| [(ahead[i as usize], i), (behind[i as usize], i)])
-            .collect();
+        spokes.extend(
+            (0..corners.len() as u32)
+                .flat_map(|i| [(ahead[i as usize], i), (behind[i as usize], i)]),
+        );
         spokes.sort_unstable();
+        let spokes = &*spokes;
         let on_spoke = |s: u32| {
             let start = spokes.partition_point(|&(x, _)| x < s);
             let end = spokes.partition_point(|&(x, _)| x <= s);
@@ -70,8 +107,8 @@ impl Topology {
             }
         };
 
-        let mut vertices = vec![first_spoke];
-        let mut triangles = vec![corners[first_slot as usize] / 3];
+        vertices.push(first_spoke);
+        triangles.push(corners[first_slot as usize] / 3);
         let (mut slot, mut spoke) = (first_slot, first_spoke);
         loop {
             let i = slot as usize;
@@ -95,10 +132,6 @@ impl Topology {
             slot = next_slot;
         }
         let closed = vertices.len() == triangles.len();
-        (triangles.len() == corners.len()).then_some(OrderedRing {
-            vertices,
-            triangles,
-            closed,
-        })
+        (triangles.len() == corners.len()).then_some(closed)
     }
 }

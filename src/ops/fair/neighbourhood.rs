@@ -7,7 +7,7 @@
 //! so a non-orientable or inconsistently wound mesh still gets a valid local orientation
 //! (fairing.md pitfall 17).
 
-use crate::mesh::Topology;
+use crate::mesh::{RingBuffers, Topology};
 use rayon::prelude::*;
 
 /// Vertices per block when building (see [`Neighbourhood::new`]).
@@ -58,15 +58,22 @@ impl Neighbourhood {
                     closed: Vec::with_capacity(vertices.len()),
                     manifold: Vec::with_capacity(vertices.len()),
                 };
+                let mut buffers = RingBuffers::default();
                 for v in vertices {
-                    let (ring_len, fan_len, closed, manifold) = match topo.ordered_ring(v as u32) {
-                        Some(r) => {
-                            block.ring.extend_from_slice(&r.vertices);
-                            block.fan.extend_from_slice(&r.triangles);
-                            (r.vertices.len(), r.triangles.len(), r.closed, true)
-                        }
-                        None => (0, 0, false, false),
-                    };
+                    let (ring_len, fan_len, closed, manifold) =
+                        match topo.ordered_ring_into(v as u32, &mut buffers) {
+                            Some(closed) => {
+                                block.ring.extend_from_slice(&buffers.vertices);
+                                block.fan.extend_from_slice(&buffers.triangles);
+                                (
+                                    buffers.vertices.len(),
+                                    buffers.triangles.len(),
+                                    closed,
+                                    true,
+                                )
+                            }
+                            None => (0, 0, false, false),
+                        };
                     block.ring_lengths.push(ring_len as u32);
                     block.fan_lengths.push(fan_len as u32);
                     block.closed.push(closed);
