@@ -151,20 +151,18 @@ pub fn run_recipe(
         let mut preparing = None;
         // The preview's input panel needs the input alone: it is drawn at the lowest
         // priority beside the steps, in the time their sequential parts leave a core idle
-        // (see `crate::idle`). It is waited for before a decimation, so that its buffers
-        // (~27 MB on the 400k-triangle face) never meet the decimation's memory peak. After
-        // a crop the preview shows the cropped input, which only the steps make: with a
-        // crop in the recipe the panel is drawn with the rest, as it is without metrics
-        // (the preview then has no index of the input to share, see `draw` below).
-        let mut panel_thread = (recipe.preview.enabled
+        // (see `crate::idle`). Its buffers (~30 MB on the 400k-triangle face) must meet
+        // neither the decimation's memory peak nor that of the first step (relax builds the
+        // input's whole topology): it starts after the first step and is waited for before
+        // a decimation. After a crop the preview shows the cropped input, which only the
+        // steps make: with a crop in the recipe the panel is drawn with the rest, as it is
+        // without metrics (the preview then has no index of the input to share, see `draw`
+        // below).
+        let mut panel_input = (recipe.preview.enabled
             && recipe.metrics.enabled
             && !recipe.steps.iter().any(|s| matches!(s, Step::Crop(_))))
-        .then(|| {
-            let input = Arc::clone(&input);
-            scope.spawn(move || {
-                crate::idle::run_when_idle(|| preview::draw_input_panel(&input, &recipe.preview))
-            })
-        });
+        .then(|| Arc::clone(&input));
+        let mut panel_thread = None;
         let mut input_panel = None;
         let steps = run_steps_observed(
             recipe,
@@ -177,6 +175,16 @@ pub fn run_recipe(
             &mut |i, when, step, current| {
                 if when == When::Before && matches!(step, Step::Decimate(_)) {
                     input_panel = join_panel(panel_thread.take()).or(input_panel.take());
+                }
+                if when == When::After
+                    && i == 0
+                    && let Some(input) = panel_input.take()
+                {
+                    panel_thread = Some(scope.spawn(move || {
+                        crate::idle::run_when_idle(|| {
+                            preview::draw_input_panel(&input, &recipe.preview)
+                        })
+                    }));
                 }
                 match (when, step) {
                     (When::After, Step::Crop(_)) => {
