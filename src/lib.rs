@@ -3,7 +3,6 @@
 pub mod compare;
 pub mod config;
 pub mod daemon;
-pub mod idle;
 pub mod memory;
 pub mod mesh;
 pub mod metrics;

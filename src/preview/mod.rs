@@ -1,10 +1,6 @@
 //! Preview pictures of a processed scan, drawn in software (no GPU, no window): three
 //! panels side by side, the input, the result (textured, lit, from the front) and the
-//! result coloured by its distance to the input, all through the same camera, framed on
-//! the input.
-//!
-//! The input's panel needs nothing of the result, so it can be drawn ahead
-//! ([`draw_input_panel`]): the recipe runner draws it while the steps run.
+//! result coloured by its distance to the input, all through the same camera.
 //!
 //! - [`camera`]: what "front" means and how the view is fitted;
 //! - [`raster`]: the z-buffered triangle rasteriser (visibility and barycentrics);
@@ -114,7 +110,6 @@ pub struct PreviewFigures {
     /// The largest and 99th-percentile vertex distance of the result to the input.
     pub max_percent: f64,
     pub p99_percent: f64,
-    /// Drawing time, the input's panel included when it was drawn ahead.
     pub render_ms: f64,
 }
 
@@ -165,85 +160,17 @@ pub fn render(
     result: &Mesh,
     options: &PreviewOptions,
 ) -> Result<Preview, PreviewError> {
-    render_with(input, None, result, options, None)
+    render_with(input, None, result, options)
 }
 
 /// [`render`] with a closest-point index over `input` already built (the metrics' one):
-/// the distance panel then needs no index of its own. `input_panel`, when given, is the
-/// input's panel drawn ahead by [`draw_input_panel`] with the same options.
+/// the distance panel then needs no index of its own.
 pub fn render_with_index(
     input_index: &SurfaceIndex<'_>,
     result: &Mesh,
     options: &PreviewOptions,
-    input_panel: Option<InputPanel>,
 ) -> Result<Preview, PreviewError> {
-    render_with(
-        input_index.mesh(),
-        Some(input_index),
-        result,
-        options,
-        input_panel,
-    )
-}
-
-/// The input's panel, drawn ahead of the others by [`draw_input_panel`].
-pub struct InputPanel {
-    options: PreviewOptions,
-    camera: Camera,
-    pixels: PanelPixels,
-    draw_ms: f64,
-}
-
-impl std::fmt::Debug for InputPanel {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("InputPanel")
-            .field("options", &self.options)
-            .field("draw_ms", &self.draw_ms)
-            .finish_non_exhaustive()
-    }
-}
-
-/// Draws the input's panel alone, through the camera every panel of the picture uses (it
-/// is framed on the input). The result is not needed, so this may run long before the
-/// result exists.
-pub fn draw_input_panel(
-    input: &Mesh,
-    options: &PreviewOptions,
-) -> Result<InputPanel, PreviewError> {
-    let start = Instant::now();
-    options.validate().map_err(PreviewError::Options)?;
-    if input.triangles.is_empty() {
-        return Err(PreviewError::Empty("the input has no triangles"));
-    }
-    let camera = frame(input, options)?;
-    // Its decoded textures are not kept for the result's panel: a scanner's photo can be
-    // tens of megabytes decoded, and the panel may wait through the decimation's memory peak.
-    let pixels = panel_pixels(
-        &Surface::appearance(input, &mut TextureCache::new()),
-        &camera,
-        options.supersample,
-        options.size,
-    );
-    Ok(InputPanel {
-        options: *options,
-        camera,
-        pixels,
-        draw_ms: start.elapsed().as_secs_f64() * 1e3,
-    })
-}
-
-/// The camera of every panel: the view and up axes of `options`, framed on `input` with
-/// a margin of 3 % on each side. The result is not in the framing: it lies on or near the
-/// input's surface, and the input's panel can then be drawn before the result exists.
-fn frame(input: &Mesh, options: &PreviewOptions) -> Result<Camera, PreviewError> {
-    Camera::fit(
-        &input.positions,
-        options.view,
-        options.up_axis(),
-        Layout::new(options.size).viewport(),
-        0.03,
-    )
-    .ok_or(PreviewError::Empty("no finite vertex to frame"))
+    render_with(input_index.mesh(), Some(input_index), result, options)
 }
 
 fn render_with(
@@ -251,7 +178,6 @@ fn render_with(
     input_index: Option<&SurfaceIndex<'_>>,
     result: &Mesh,
     options: &PreviewOptions,
-    input_panel: Option<InputPanel>,
 ) -> Result<Preview, PreviewError> {
     let start = Instant::now();
     options.validate().map_err(PreviewError::Options)?;
@@ -261,13 +187,16 @@ fn render_with(
     if result.triangles.is_empty() {
         return Err(PreviewError::Empty("the result has no triangles"));
     }
-    let input_panel = input_panel.filter(|p| p.options == *options);
     let layout = Layout::new(options.size);
     let (view, up) = (options.view, options.up_axis());
-    let camera = match &input_panel {
-        Some(panel) => panel.camera,
-        None => frame(input, options)?,
-    };
+    let camera = Camera::fit(
+        input.positions.iter().chain(&result.positions),
+        view,
+        up,
+        layout.viewport(),
+        0.03,
+    )
+    .ok_or(PreviewError::Empty("no finite vertex to frame"))?;
 
     let distances = match input_index {
         Some(index) => {
@@ -290,20 +219,10 @@ fn render_with(
 
     let size = options.size;
     let mut image = RgbImage::from_pixel(3 * size, size, Rgb(BACKGROUND));
-    let ss = options.supersample;
     let mut cache = TextureCache::new();
-    let drawn_ahead_ms = match input_panel {
-        Some(panel) => {
-            put_panel(&mut image, &panel.pixels, 0);
-            panel.draw_ms
-        }
-        None => {
-            let surface = Surface::appearance(input, &mut cache);
-            put_panel(&mut image, &panel_pixels(&surface, &camera, ss, size), 0);
-            0.0
-        }
-    };
+    let ss = options.supersample;
     let panels = [
+        Surface::appearance(input, &mut cache),
         Surface::appearance(result, &mut cache),
         Surface::new(
             result,
@@ -314,8 +233,7 @@ fn render_with(
         ),
     ];
     for (i, surface) in panels.iter().enumerate() {
-        let pixels = panel_pixels(surface, &camera, ss, size);
-        put_panel(&mut image, &pixels, (i as u32 + 1) * size);
+        draw_panel(surface, &camera, ss, size, &mut image, i as u32 * size);
     }
 
     let k = layout.k;
@@ -351,17 +269,21 @@ fn render_with(
             scale_percent,
             max_percent,
             p99_percent,
-            render_ms: drawn_ahead_ms + start.elapsed().as_secs_f64() * 1e3,
+            render_ms: start.elapsed().as_secs_f64() * 1e3,
         },
         image,
     })
 }
 
-/// A panel's pixels, row by row.
-type PanelPixels = Vec<Vec<[u8; 3]>>;
-
-/// Draws one surface as a panel of `size` × `size` pixels.
-fn panel_pixels(surface: &Surface, camera: &Camera, ss: u32, size: u32) -> PanelPixels {
+/// Draws one surface into the panel whose left edge is column `x0`.
+fn draw_panel(
+    surface: &Surface,
+    camera: &Camera,
+    ss: u32,
+    size: u32,
+    image: &mut RgbImage,
+    x0: u32,
+) {
     let mesh = surface.mesh;
     let cam = camera.scaled(ss as f64);
     let n = (size * ss) as usize;
@@ -406,11 +328,6 @@ fn panel_pixels(surface: &Surface, camera: &Camera, ss: u32, size: u32) -> Panel
                 .collect()
         })
         .collect();
-    rows
-}
-
-/// Puts a panel's pixels into the picture, its left edge at column `x0`.
-fn put_panel(image: &mut RgbImage, rows: &PanelPixels, x0: u32) {
     for (row, pixels) in rows.iter().enumerate() {
         for (col, &p) in pixels.iter().enumerate() {
             image.put_pixel(x0 + col as u32, row as u32, Rgb(p));

@@ -192,37 +192,3 @@ fn empty_meshes_are_errors_not_panics() {
     assert!(render(&Mesh::default(), &m, &PreviewOptions::default()).is_err());
     assert!(render(&m, &Mesh::default(), &PreviewOptions::default()).is_err());
 }
-
-#[test]
-fn input_panel_drawn_ahead_gives_the_same_picture() {
-    let input = uv_sphere(1.0, 24, 32);
-    let mut result = input.clone();
-    for p in &mut result.positions {
-        p.x *= 0.9; // the result lies inside the input's frame
-    }
-    let o = options(256, 2);
-    let whole = render(&input, &result, &o).unwrap();
-    let index = SurfaceIndex::new(&input, "input").unwrap();
-    let panel = draw_input_panel(&input, &o).unwrap();
-    let ahead = render_with_index(&index, &result, &o, Some(panel)).unwrap();
-    assert!(whole.image == ahead.image);
-    // A panel drawn with other options is not used: the picture is drawn whole.
-    let other = draw_input_panel(&input, &options(256, 1)).unwrap();
-    let redrawn = render_with_index(&index, &result, &o, Some(other)).unwrap();
-    assert!(whole.image == redrawn.image);
-    // The input alone frames the camera: a result reaching out of it is cut at the frame,
-    // and its panels look the same whether the input's was drawn ahead or not.
-    let mut larger = input.clone();
-    for p in &mut larger.positions {
-        *p *= 3.0;
-    }
-    let whole = render(&input, &larger, &o).unwrap();
-    let ahead = render_with_index(
-        &index,
-        &larger,
-        &o,
-        Some(draw_input_panel(&input, &o).unwrap()),
-    )
-    .unwrap();
-    assert!(whole.image == ahead.image);
-}

@@ -149,21 +149,6 @@ pub fn run_recipe(
         let mut reference = Arc::clone(&input);
         let mut cropped = false;
         let mut preparing = None;
-        // The preview's input panel needs the input alone: it is drawn at the lowest
-        // priority beside the steps, in the time their sequential parts leave a core idle
-        // (see `crate::idle`). Its buffers (~30 MB on the 400k-triangle face) must meet
-        // neither the decimation's memory peak nor that of the first step (relax builds the
-        // input's whole topology): it starts after the first step and is waited for before
-        // a decimation. After a crop the preview shows the cropped input, which only the
-        // steps make: with a crop in the recipe the panel is drawn with the rest, as it is
-        // without metrics (the preview then has no index of the input to share, see `draw`
-        // below).
-        let mut panel_input = (recipe.preview.enabled
-            && recipe.metrics.enabled
-            && !recipe.steps.iter().any(|s| matches!(s, Step::Crop(_))))
-        .then(|| Arc::clone(&input));
-        let mut panel_thread = None;
-        let mut input_panel = None;
         let steps = run_steps_observed(
             recipe,
             mesh,
@@ -172,44 +157,28 @@ pub fn run_recipe(
             total_stages,
             needs_input(recipe).then_some(input),
             &mut handover,
-            &mut |i, when, step, current| {
-                if when == When::Before && matches!(step, Step::Decimate(_)) {
-                    input_panel = join_panel(panel_thread.take()).or(input_panel.take());
+            &mut |i, when, step, current| match (when, step) {
+                (When::After, Step::Crop(_)) => {
+                    reference = Arc::new(current.clone());
+                    cropped = true;
                 }
-                if when == When::After
-                    && i == 0
-                    && let Some(input) = panel_input.take()
+                // Not beside a decimation in halves: that keeps both cores busy itself, and
+                // the preparation's memory (~25 MB on the 400k-triangle face) would add to
+                // the run's peak, there or beside `seam_fix` after it (measured: 165–177 MB
+                // against 146–150 MB; issue #8's budget is 160 MB for that scan). It is
+                // then made after the steps.
+                (When::Before, Step::Decimate(p))
+                    if recipe.metrics.enabled
+                        && preparing.is_none()
+                        && ops::decimate::halves::wanted(current, p).is_none()
+                        && !recipe.steps[i..].iter().any(|s| matches!(s, Step::Crop(_))) =>
                 {
-                    panel_thread = Some(scope.spawn(move || {
-                        crate::idle::run_when_idle(|| {
-                            preview::draw_input_panel(&input, &recipe.preview)
-                        })
-                    }));
+                    let reference = early_reference.get_or_init(|| Arc::clone(&reference));
+                    preparing = Some(scope.spawn(move || prepare_beside(reference, &options)));
                 }
-                match (when, step) {
-                    (When::After, Step::Crop(_)) => {
-                        reference = Arc::new(current.clone());
-                        cropped = true;
-                    }
-                    // Not beside a decimation in halves: that keeps both cores busy itself, and
-                    // the preparation's memory (~25 MB on the 400k-triangle face) would add to
-                    // the run's peak, there or beside `seam_fix` after it (measured: 165–177 MB
-                    // against 146–150 MB; issue #8's budget is 160 MB for that scan). It is
-                    // then made after the steps.
-                    (When::Before, Step::Decimate(p))
-                        if recipe.metrics.enabled
-                            && preparing.is_none()
-                            && ops::decimate::halves::wanted(current, p).is_none()
-                            && !recipe.steps[i..].iter().any(|s| matches!(s, Step::Crop(_))) =>
-                    {
-                        let reference = early_reference.get_or_init(|| Arc::clone(&reference));
-                        preparing = Some(scope.spawn(move || prepare_beside(reference, &options)));
-                    }
-                    _ => {}
-                }
+                _ => {}
             },
         )?;
-        let input_panel = join_panel(panel_thread.take()).or(input_panel);
         let reference = early_reference.get().unwrap_or(&reference);
         // A crop after the fairing made another reference than the one handed over.
         let known_topology = handover.reference_topology.take().filter(|_| !cropped);
@@ -255,7 +224,7 @@ pub fn run_recipe(
             progress.stage(first_stage + recipe.steps.len(), total_stages, "preview");
             let drawn = match &prepared {
                 Some(Ok(prepared)) => {
-                    preview::render_with_index(prepared.index(), mesh, &recipe.preview, input_panel)
+                    preview::render_with_index(prepared.index(), mesh, &recipe.preview)
                 }
                 _ => preview::render(reference, mesh, &recipe.preview),
             };
@@ -284,26 +253,6 @@ pub fn run_recipe(
         })
     })
 }
-
-/// The input panel drawn ahead, once its thread is done (`None` if there was none or it
-/// failed: a failure is the whole preview's, reported when the rest is drawn).
-fn join_panel(
-    thread: Option<std::thread::ScopedJoinHandle<'_, PanelResult>>,
-) -> Option<preview::InputPanel> {
-    let start = Instant::now();
-    let panel = thread?
-        .join()
-        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-        .ok();
-    tracing::debug!(
-        waited_ms = start.elapsed().as_secs_f64() * 1e3,
-        ?panel,
-        "preview's input panel drawn ahead"
-    );
-    panel
-}
-
-type PanelResult = Result<preview::InputPanel, preview::PreviewError>;
 
 /// Prepares the reference's half of the metrics on fewer threads than the machine has:
 /// it runs beside the decimation, whose sequential loop keeps one core busy.
