@@ -170,21 +170,9 @@ impl<'a> PreparedReference<'a> {
         })
     }
 
-    /// [`PreparedReference::new`] with the reference's topology made elsewhere already
+    /// This preparation with the reference's topology made elsewhere already
     /// ([`topology::ReferenceTopology::from_topology`] on the reference's own triangles and
     /// positions).
-    pub fn with_known_topology(
-        reference: &'a Mesh,
-        options: &MetricsOptions,
-        topology: topology::ReferenceTopology,
-    ) -> Result<Self, MetricsError> {
-        Ok(PreparedReference {
-            topology: Some(topology),
-            ..PreparedReference::new(reference, options)?
-        })
-    }
-
-    /// This preparation with the reference's topology made elsewhere already.
     pub fn with_reference_topology(self, topology: topology::ReferenceTopology) -> Self {
         PreparedReference {
             topology: Some(topology),

@@ -182,22 +182,21 @@ pub fn run_recipe(
         let reference = early_reference.get().unwrap_or(&reference);
         // A crop after the fairing made another reference than the one handed over.
         let known_topology = handover.reference_topology.take().filter(|_| !cropped);
-        let prepared = recipe
-            .metrics
-            .enabled
-            .then(|| match (preparing, known_topology) {
-                (Some(thread), known) => thread
+        let prepared = recipe.metrics.enabled.then(|| {
+            let prepared = match (preparing, &known_topology) {
+                (Some(thread), _) => thread
                     .join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-                    .map(|p| match known {
-                        Some(t) => p.with_reference_topology(t),
-                        None => p,
-                    }),
-                (None, Some(t)) => PreparedReference::with_known_topology(reference, &options, t),
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+                (None, Some(_)) => PreparedReference::new(reference, &options),
                 // After the steps the memory peak is past: the reference's topology is
                 // prepared too, beside its index.
                 (None, None) => PreparedReference::with_topology(reference, &options),
-            });
+            };
+            prepared.map(|p| match known_topology {
+                Some(t) => p.with_reference_topology(t),
+                None => p,
+            })
+        });
         // The preparation's threads freed their working memory in arenas of their own.
         crate::memory::release_freed();
         let measure = || match &prepared {
