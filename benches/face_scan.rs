@@ -59,6 +59,50 @@ fn children_usage() -> (f64, u64) {
     )
 }
 
+/// The machine's speed at the time of the runs: the median time of a fixed single-threaded
+/// workload (sorting 4 million pseudo-random integers). This machine's speed varies by up to
+/// 2× between hours (docs/face-scan.md); printing this beside the medians tells a slow hour
+/// from a slower scanmill.
+fn reference_workload_ms() -> f64 {
+    let mut times = Vec::new();
+    for _ in 0..5 {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut values: Vec<u64> = (0..4_000_000)
+            .map(|_| {
+                // xorshift64
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state
+            })
+            .collect();
+        let start = Instant::now();
+        values.sort_unstable();
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        std::hint::black_box(&values);
+    }
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+/// Jiffies the hypervisor took from this machine so far (the `steal` column of /proc/stat),
+/// and all jiffies; 0 where the kernel does not say.
+fn steal_jiffies() -> (u64, u64) {
+    let stat = std::fs::read_to_string("/proc/stat").unwrap_or_default();
+    let Some(cpu) = stat.lines().next().filter(|line| line.starts_with("cpu ")) else {
+        return (0, 0);
+    };
+    let fields: Vec<u64> = cpu
+        .split_whitespace()
+        .skip(1)
+        .filter_map(|field| field.parse().ok())
+        .collect();
+    (
+        fields.get(7).copied().unwrap_or(0),
+        fields.iter().take(8).sum(),
+    )
+}
+
 /// One run into an emptied output folder (as the daemon's fresh job folders are).
 fn run(input: &Path, out: &Path) {
     let _ = std::fs::remove_dir_all(out);
@@ -87,6 +131,8 @@ fn bench(c: &mut Criterion) {
 
     // Medians of wall and CPU time, and the peak memory, over a few runs of the binary.
     let runs = 5;
+    let reference_ms = reference_workload_ms();
+    let (steal_before, jiffies_before) = steal_jiffies();
     let mut walls = Vec::new();
     let mut cpus = Vec::new();
     for _ in 0..runs {
@@ -99,10 +145,13 @@ fn bench(c: &mut Criterion) {
     walls.sort_by(f64::total_cmp);
     cpus.sort_by(f64::total_cmp);
     let peak = children_usage().1;
+    let (steal_after, jiffies_after) = steal_jiffies();
+    let steal_percent = 100.0 * (steal_after - steal_before) as f64
+        / (jiffies_after - jiffies_before).max(1) as f64;
     eprintln!(
         "face-scan recipe, {FACES} triangles, load to written output: median wall {:.2} s \
          (min {:.2}, max {:.2}), median CPU {:.2} s, peak RSS {:.0} MB = {:.0} bytes per input \
-         triangle (loadavg {})",
+         triangle (loadavg {}; machine speed: reference sort {:.0} ms, CPU steal {:.1} %)",
         walls[runs / 2],
         walls[0],
         walls[runs - 1],
@@ -111,7 +160,9 @@ fn bench(c: &mut Criterion) {
         peak as f64 / FACES as f64,
         std::fs::read_to_string("/proc/loadavg")
             .unwrap_or_default()
-            .trim()
+            .trim(),
+        reference_ms,
+        steal_percent,
     );
 
     let mut group = c.benchmark_group("face-scan recipe");
