@@ -119,3 +119,50 @@ fn systemd_unit_verifies() {
         "warnings about the unit: {text}"
     );
 }
+
+#[test]
+fn absurd_numbers_are_refused_at_validation_not_at_run_time() {
+    for (key, value) in [
+        ("job_timeout_secs", "1e300"),
+        ("rescan_secs", "1e19"),
+        ("retry_max_secs", "inf"),
+        ("drain_timeout_secs", "nan"),
+        ("max_attempts", "1000"),
+        ("job_memory_mb", "1"),
+    ] {
+        let lab = Lab::new(1.0, "");
+        // Set the key in place (the lab's config may already have it).
+        let config: String = std::fs::read_to_string(&lab.config)
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with(&format!("{key} =")))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        std::fs::write(&lab.config, format!("{key} = {value}\n{config}")).unwrap();
+        let (code, out, err) = lab.cli(&["validate-config"]);
+        assert_eq!(code, 78, "{key} = {value}: {out}{err}");
+        assert!(err.contains(&format!("{key} must")), "{key}: {err}");
+        let out = Command::new(BIN)
+            .args(["daemon", "--config"])
+            .arg(&lab.config)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(78), "{key} = {value}");
+    }
+}
+
+#[test]
+fn an_output_folder_linked_into_the_watched_folder_is_refused() {
+    let lab = Lab::new(1.0, "");
+    let inside = lab.inbox().join("results");
+    std::fs::create_dir(&inside).unwrap();
+    let link = lab.dir.path().join("out-link");
+    std::os::unix::fs::symlink(&inside, &link).unwrap();
+    let config = std::fs::read_to_string(&lab.config).unwrap();
+    let outbox = format!("{:?}", lab.outbox());
+    assert!(config.contains(&outbox));
+    std::fs::write(&lab.config, config.replace(&outbox, &format!("{link:?}"))).unwrap();
+    let (code, out, err) = lab.cli(&["validate-config"]);
+    assert_eq!(code, 78, "{out}{err}");
+    assert!(err.contains("must not contain one another"), "{err}");
+}

@@ -62,7 +62,7 @@ pub struct JobSpec {
 }
 
 /// What a finished thread reports.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub enum JobResult {
     Finished {
         finish: Finish,
