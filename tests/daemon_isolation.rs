@@ -66,7 +66,11 @@ fn abort_segfault_and_out_of_memory_fail_only_their_jobs() {
             assert!(error.contains(" peak "), "{name}: {error}");
         }
     }
-    assert!(lab.worker_pids().is_empty(), "{:?}", lab.worker_pids());
+    assert!(
+        wait_for(10, || lab.worker_pids().is_empty()),
+        "{:?}",
+        lab.worker_pids()
+    );
     assert_eq!(
         lab.visible_outputs(),
         [

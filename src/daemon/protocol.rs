@@ -8,12 +8,13 @@
 //!
 //! Version 1:
 //! - `{"v":1,"event":"stage","index":I,"total":N,"name":"fair"}` as each stage starts;
-//! - then exactly one of `{"v":1,"event":"done","report":{…}}` (the report of
-//!   [`crate::report::Report`], its output paths inside the staging folder) or
+//! - then exactly one of `{"v":1,"event":"done","report":{…},"busy_ms":T}` (the report of
+//!   [`crate::report::Report`], its output paths inside the staging folder, and the time the
+//!   worker spent on the job) or
 //!   `{"v":1,"event":"failed","kind":K,"message":M,"transient":B}`.
 //!
-//! Anything else on the pipe, or a pipe that closes without a final event, is a protocol
-//! failure of that job, never of the daemon.
+//! The daemon stops reading at the final event. Anything else on the pipe before it, or a
+//! pipe that closes without one, is a protocol failure of that job, never of the daemon.
 
 use crate::report::Report;
 use serde::{Deserialize, Serialize};
@@ -42,6 +43,8 @@ pub enum Event {
     },
     Done {
         report: Box<Report>,
+        /// Milliseconds the worker spent from taking up the job to this report.
+        busy_ms: f64,
     },
     Failed {
         kind: String,

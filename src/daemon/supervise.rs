@@ -72,8 +72,12 @@ impl ProcessFailure {
 /// How a worker ended.
 #[derive(Debug)]
 pub enum WorkerOutcome {
-    /// The worker's report, and the wall time from starting the worker to reaping it.
-    Done(Box<Report>, Duration),
+    Done {
+        report: Box<Report>,
+        /// What isolation cost: the wall time from starting the worker to its report, less
+        /// the time the worker itself spent on the job.
+        isolation_ms: f64,
+    },
     Failed(ProcessFailure),
     /// Killed because the job was abandoned (daemon stopping); nothing to record as failed.
     Abandoned,
@@ -81,7 +85,9 @@ pub enum WorkerOutcome {
 
 /// What the worker said last and how it ended, before interpretation.
 struct Ended {
-    status: libc::c_int,
+    /// The wait status; `None` when the worker gave its final word and its exit was left
+    /// to a reaper in the background.
+    status: Option<libc::c_int>,
     rusage: libc::rusage,
     wall: Duration,
     final_event: Option<Event>,
@@ -216,9 +222,9 @@ fn spawn_and_wait(
                     event: Event::Stage { index, total, name },
                     ..
                 }) => on_stage(index, total, &name),
-                Ok(line) if final_event.is_none() => final_event = Some(line.event),
-                Ok(_) => {
-                    protocol_error.get_or_insert_with(|| "a second final event".to_string());
+                Ok(line) => {
+                    final_event = Some(line.event);
+                    break;
                 }
                 Err(e) => {
                     protocol_error.get_or_insert(e);
@@ -240,8 +246,30 @@ fn spawn_and_wait(
             kill(pid);
         }
     }
-    // Standard output is closed: the worker is exiting (or has closed it, which the
-    // protocol does not allow: then it is killed after the deadline like any other).
+    if final_event.is_some() && protocol_error.is_none() && killed.is_none() {
+        // The worker has said all it will say. Its exit (freeing a large scan's memory takes
+        // tens of milliseconds) is not waited for: a reaper does that in the background.
+        let wall = start.elapsed();
+        let stderr_tail = tail
+            .lock()
+            .map(|t| t.iter().cloned().collect())
+            .unwrap_or_default();
+        reap_later(pid, request.job_id, reader, forwarder);
+        std::mem::forget(child);
+        return Ok(Ended {
+            status: None,
+            // SAFETY: all-zero is a valid rusage.
+            rusage: unsafe { std::mem::zeroed() },
+            wall,
+            final_event,
+            protocol_error,
+            killed,
+            stderr_tail,
+        });
+    }
+    // Standard output is closed without a final word: the worker is exiting (or has
+    // closed it, which the protocol does not allow: then it is killed after the deadline
+    // like any other).
     let (status, rusage) = loop {
         match reap(pid, Duration::from_millis(50)) {
             Some(r) => break r,
@@ -266,7 +294,7 @@ fn spawn_and_wait(
         .map(|t| t.iter().cloned().collect())
         .unwrap_or_default();
     Ok(Ended {
-        status,
+        status: Some(status),
         rusage,
         wall,
         final_event,
@@ -274,6 +302,36 @@ fn spawn_and_wait(
         killed,
         stderr_tail,
     })
+}
+
+/// How long a worker that has given its final word may take to exit before it is killed.
+const EXIT_PATIENCE: Duration = Duration::from_secs(30);
+
+/// Waits for a worker that has finished its job to exit, on a thread of its own.
+fn reap_later(
+    pid: libc::pid_t,
+    job_id: i64,
+    reader: std::thread::JoinHandle<()>,
+    forwarder: std::thread::JoinHandle<()>,
+) {
+    let reaper = move || {
+        if reap(pid, EXIT_PATIENCE).is_none() {
+            tracing::warn!(job_id, pid, "worker did not exit after its result; killed");
+            kill(pid);
+            while reap(pid, Duration::from_secs(1)).is_none() {}
+        }
+        let _ = reader.join();
+        let _ = forwarder.join();
+    };
+    let spawned = std::thread::Builder::new()
+        .name(format!("scanmill-job-{job_id}-reap"))
+        .spawn(reaper);
+    if let Err(e) = spawned {
+        // No thread to spare: kill it now (its result is already in hand) and reap here.
+        tracing::warn!(job_id, "cannot start a reaper ({e}); killing the worker");
+        kill(pid);
+        while reap(pid, Duration::from_secs(1)).is_none() {}
+    }
 }
 
 /// Kills the worker and anything it started (its own process group).
@@ -430,8 +488,9 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
             format!("worker broke the protocol ({e}); killed {after}"),
         ));
     }
-    let status = ended.status;
-    if libc::WIFSIGNALED(status) {
+    if let Some(status) = ended.status
+        && libc::WIFSIGNALED(status)
+    {
         let sig = libc::WTERMSIG(status);
         let out_of_memory = ended
             .stderr_tail
@@ -468,9 +527,12 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
             ),
         ));
     }
-    let code = libc::WEXITSTATUS(status);
+    let code = ended.status.map_or(0, |s| libc::WEXITSTATUS(s));
     match ended.final_event {
-        Some(Event::Done { report }) if code == 0 => WorkerOutcome::Done(report, ended.wall),
+        Some(Event::Done { report, busy_ms }) if code == 0 => WorkerOutcome::Done {
+            report,
+            isolation_ms: ended.wall.as_secs_f64() * 1e3 - busy_ms,
+        },
         Some(Event::Failed {
             kind,
             message,
@@ -493,7 +555,7 @@ mod tests {
 
     fn ended(status: libc::c_int, tail: &[&str]) -> Ended {
         Ended {
-            status,
+            status: Some(status),
             // SAFETY: all-zero is a valid rusage.
             rusage: unsafe { std::mem::zeroed() },
             wall: Duration::from_millis(2100),

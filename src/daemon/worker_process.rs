@@ -130,12 +130,13 @@ pub fn failure_of(e: &ProcessError) -> Event {
 pub fn run(args: WorkerArgs) -> u8 {
     let span = tracing::info_span!("worker", job_id = args.job_id, pid = std::process::id());
     let _guard = span.enter();
+    let start = std::time::Instant::now();
     // When memory runs short, the kernel's OOM killer should take a worker, not the daemon
     // that records why it died. Raising one's own score needs no privilege.
     let _ = std::fs::write("/proc/self/oom_score_adj", "500");
     test_hooks::inject_fault(&args.input);
-    let event =
-        std::panic::catch_unwind(AssertUnwindSafe(|| run_job(&args))).unwrap_or_else(|panic| {
+    let event = std::panic::catch_unwind(AssertUnwindSafe(|| run_job(&args, start)))
+        .unwrap_or_else(|panic| {
             let message = panic
                 .downcast_ref::<&str>()
                 .map(|s| s.to_string())
@@ -152,7 +153,7 @@ pub fn run(args: WorkerArgs) -> u8 {
     0
 }
 
-fn run_job(args: &WorkerArgs) -> Event {
+fn run_job(args: &WorkerArgs, start: std::time::Instant) -> Event {
     let recipe = match load_recipe(&args.recipe) {
         Ok(r) => r,
         Err(e) => {
@@ -185,6 +186,7 @@ fn run_job(args: &WorkerArgs) -> Event {
     ) {
         Ok(report) => Event::Done {
             report: Box::new(report),
+            busy_ms: start.elapsed().as_secs_f64() * 1e3,
         },
         Err(e) => failure_of(&e),
     }
