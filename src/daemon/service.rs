@@ -11,7 +11,7 @@
 //! then put the rest back in the queue (not counted), checkpoint the WAL and return.
 
 use super::glob::Filter;
-use super::scanset::{Event, Known, RootSpec, Tracker, job_key};
+use super::scanset::{Content, Done, Event, Known, Limits, RootSpec, Tracker, job_key};
 use super::systemd::{Notifier, StateLock, free_bytes};
 use super::worker::{self, JobResult, JobSpec, Processor, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
@@ -184,6 +184,7 @@ pub fn run(
             },
             quiet: secs(w.quiet_period_secs),
             marker: w.marker.clone(),
+            follow_symlinks: w.follow_symlinks,
         });
         roots.push(RootRuntime {
             identity: None,
@@ -198,12 +199,22 @@ pub fn run(
             overflow: Arc::new(AtomicBool::new(false)),
         });
     }
-    let tracker = Tracker::new(
-        specs,
-        known,
-        secs(config.incomplete_report_secs),
-        secs(config.rescan_secs),
-    );
+    // File contents are read and hashed on their own thread; results come back to the
+    // loop as messages, so no input can hold the loop (or the watchdog ping) up.
+    let (content_tx, content_rx) = mpsc::unbounded_channel::<Done>();
+    let content = Content::spawn(move |done| {
+        let _ = content_tx.send(done);
+    })
+    .map_err(|source| ServiceError::Io {
+        context: "content thread".into(),
+        source,
+    })?;
+    let limits = Limits {
+        incomplete_after: secs(config.incomplete_report_secs),
+        unreadable_retry: secs(config.rescan_secs),
+        max_input_bytes: config.max_input_bytes,
+    };
+    let tracker = Tracker::new(specs, known, limits, content);
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -234,7 +245,7 @@ pub fn run(
         next_run_after: None,
         counts: (0, 0),
     };
-    let result = runtime.block_on(service.main_loop(results_rx, hints_rx));
+    let result = runtime.block_on(service.main_loop(results_rx, hints_rx, content_rx));
     drop(lock);
     result
 }
@@ -244,6 +255,7 @@ impl Service {
         mut self,
         mut results_rx: mpsc::UnboundedReceiver<(i64, JobResult)>,
         mut hints_rx: mpsc::Receiver<usize>,
+        mut content_rx: mpsc::UnboundedReceiver<Done>,
     ) -> Result<(), ServiceError> {
         use tokio::signal::unix::{SignalKind, signal};
         let sig = |k| {
@@ -319,6 +331,10 @@ impl Service {
                     }
                 }
                 Some((id, result)) = results_rx.recv() => self.job_finished(id, result)?,
+                Some(done) = content_rx.recv() => {
+                    let events = self.tracker.content_done(done, Instant::now());
+                    self.handle_events(events)?;
+                }
                 _ = tokio::time::sleep_until(next.into()) => {}
             }
             let now = Instant::now();

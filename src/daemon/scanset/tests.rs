@@ -9,6 +9,7 @@ fn root(dir: &Path, quiet_ms: u64, marker: Option<&str>) -> RootSpec {
         filter: Filter::default(),
         quiet: Duration::from_millis(quiet_ms),
         marker: marker.map(str::to_string),
+        follow_symlinks: false,
     }
 }
 
@@ -16,9 +17,45 @@ fn tracker(dir: &Path, quiet_ms: u64, marker: Option<&str>) -> Tracker {
     Tracker::new(
         vec![root(dir, quiet_ms, marker)],
         Known::new(),
-        Duration::from_secs(5),
-        Duration::from_secs(60),
+        limits(Duration::from_secs(60)),
+        Content::inline(),
     )
+}
+
+fn limits(unreadable_retry: Duration) -> Limits {
+    Limits {
+        incomplete_after: Duration::from_secs(5),
+        unreadable_retry,
+        max_input_bytes: 1 << 30,
+    }
+}
+
+fn confine(dir: &Path) -> Confine {
+    Confine {
+        root: dir.to_path_buf(),
+        canonical: std::fs::canonicalize(dir).unwrap(),
+        follow_symlinks: false,
+    }
+}
+
+/// The set of `primary` (under `dir`), its references read inline.
+fn spec_of(dir: &Path, primary: &Path) -> Result<SetSpec, SpecError> {
+    let c = confine(dir);
+    let Look::Regular { sig, real, rel } = c.look(primary) else {
+        panic!("{} is not a regular file", primary.display());
+    };
+    let mut cache = RefCache::default();
+    loop {
+        match set_spec(primary, (sig, real.clone(), rel.clone()), &c, &cache) {
+            Err(SpecError::Read(work)) => match work.run() {
+                Done::Refs {
+                    path, sig, names, ..
+                } => cache.insert(path, sig, names.map_err(|e| format!("{e:?}"))),
+                Done::Hash { .. } => unreachable!(),
+            },
+            other => return other,
+        }
+    }
 }
 
 fn ready(events: &[Event]) -> Vec<&ReadySet> {
@@ -48,10 +85,7 @@ fn map_file_name_strips_options_and_keeps_spaces() {
 
 #[test]
 fn james_set_has_obj_mtl_and_texture() {
-    let spec = {
-        let p = Path::new(JAMES).join("james.obj");
-        set_spec(&p, StatSig::of(&p).unwrap(), &mut RefCache::default()).unwrap()
-    };
+    let spec = spec_of(Path::new(JAMES), &Path::new(JAMES).join("james.obj")).unwrap();
     let roles: Vec<_> = spec.members.iter().map(|m| m.role).collect();
     assert_eq!(roles, ["mesh", "mtl", "texture"]);
     assert!(spec.missing.is_empty(), "{:?}", spec.missing);
@@ -69,8 +103,7 @@ fn mtllib_with_spaces_and_subfolder_textures() {
     .unwrap();
     std::fs::write(d.join("tex/skin map.png"), b"x").unwrap();
     std::fs::write(d.join("s.obj"), "mtllib a b.mtl\nv 0 0 0\n").unwrap();
-    let p = d.join("s.obj");
-    let spec = set_spec(&p, StatSig::of(&p).unwrap(), &mut RefCache::default()).unwrap();
+    let spec = spec_of(d, &d.join("s.obj")).unwrap();
     assert_eq!(spec.members.len(), 3, "{spec:?}");
     assert_eq!(spec.missing, ["tex/n.png (named by a b.mtl)"]);
 }
@@ -174,8 +207,8 @@ fn known_sets_are_not_hashed_again() {
     let mut t = Tracker::new(
         vec![root(d, 1, None)],
         known,
-        Duration::from_secs(5),
-        Duration::from_secs(5),
+        limits(Duration::from_secs(5)),
+        Content::inline(),
     );
     let t0 = Instant::now();
     t.reconcile_root(0, t0, 0);
