@@ -60,6 +60,12 @@ pub fn escape_os(s: &OsStr) -> String {
     escape_for_display(s.as_bytes())
 }
 
+/// Serde: a path as its escaped text, so that a report with a name that is not UTF-8
+/// serialises (instead of failing) and shows that name byte for byte.
+pub fn serialize_path<S: serde::Serializer>(path: &Path, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(&escape_path(path))
+}
+
 /// The longest input-derived text kept in an error message or a log line: enough for a
 /// path and a parser's message, too short for a file's contents to leak in bulk.
 pub const MAX_SHOWN: usize = 512;

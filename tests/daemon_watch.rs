@@ -299,6 +299,14 @@ fn odd_names_are_processed_and_shown_escaped() {
     );
     sighted.sort();
     assert_eq!(sighted, ["bun\\xff\\xfe.ply", "copy.ply"]);
+    // The job's report is recorded whole, its input path escaped.
+    let report = &lab.show(shared["id"].as_i64().unwrap())["report"];
+    assert!(
+        report["input"]["path"]
+            .as_str()
+            .is_some_and(|p| p.ends_with(".ply")),
+        "{report}"
+    );
 
     // Shown escaped: no raw control character in any output or log line.
     let (code, text, _) = lab.cli(&["history"]);
