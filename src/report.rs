@@ -3,13 +3,13 @@
 //! as JSON and the daemon stores the same figures in SQLite.
 
 use crate::mesh::{LoadReport, Mesh};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
 /// A file and the SHA-256 of its content.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FileHash {
     #[serde(serialize_with = "crate::text::serialize_path")]
     pub path: PathBuf,
@@ -41,7 +41,7 @@ impl FileHash {
 }
 
 /// Basic counts of a mesh, cheap to compute.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MeshCounts {
     pub vertices: usize,
     pub faces: usize,
@@ -62,7 +62,7 @@ impl MeshCounts {
     }
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct InputReport {
     #[serde(serialize_with = "crate::text::serialize_path")]
     pub path: PathBuf,
@@ -73,7 +73,7 @@ pub struct InputReport {
     pub load: LoadReport,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct RecipeReport {
     pub path: Option<PathBuf>,
     pub hash: String,
@@ -81,7 +81,7 @@ pub struct RecipeReport {
 }
 
 /// One step as it ran.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct StepReport {
     pub kind: String,
     pub wall_ms: f64,
@@ -97,7 +97,7 @@ pub struct StepReport {
     pub metrics: Option<Value>,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct OutputReport {
     pub files: Vec<FileHash>,
     pub counts: MeshCounts,
@@ -105,13 +105,13 @@ pub struct OutputReport {
 
 /// The preview picture (`preview` module): the file written beside the result and what
 /// it shows.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct PreviewReport {
     pub file: FileHash,
     pub figures: crate::preview::PreviewFigures,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Report {
     pub scanmill_version: String,
     pub input: InputReport,

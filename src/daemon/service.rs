@@ -1,6 +1,7 @@
 //! The service loop: one tokio task (current-thread runtime) that owns the database
 //! connection and the tracker, and reacts to signals, file-event hints, job results and
-//! its own timers. Jobs run on their own OS threads ([`super::worker`]).
+//! its own timers. Each job is supervised from its own OS thread ([`super::worker`]) and
+//! runs in its own worker process ([`super::supervise`]).
 //!
 //! Start-up: lock the state dir, migrate, requeue jobs left running (not counted), delete
 //! stale temporaries, set the watches, walk every root once, then READY=1.
@@ -12,8 +13,9 @@
 
 use super::glob::Filter;
 use super::scanset::{Content, Done, Event, Known, Limits, RootSpec, Tracker, job_key};
+use super::supervise::WorkerLimits;
 use super::systemd::{Notifier, StateLock, free_bytes};
-use super::worker::{self, JobResult, JobSpec, Processor, PublishGate};
+use super::worker::{self, JobResult, JobSpec, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
 use crate::store::{
@@ -46,25 +48,6 @@ pub enum ServiceError {
     },
 }
 
-/// Hidden knobs for tests; documented as test-only.
-#[derive(Debug, Clone, Default)]
-pub struct TestHooks {
-    /// Sleep at every processing stage (`SCANMILL_TEST_STEP_DELAY_MS`).
-    pub stage_delay: Option<Duration>,
-}
-
-impl TestHooks {
-    pub fn from_env() -> TestHooks {
-        TestHooks {
-            stage_delay: std::env::var("SCANMILL_TEST_STEP_DELAY_MS")
-                .ok()
-                .and_then(|v| v.parse::<u64>().ok())
-                .filter(|&ms| ms > 0)
-                .map(Duration::from_millis),
-        }
-    }
-}
-
 struct RootRuntime {
     path: PathBuf,
     output: PathBuf,
@@ -93,8 +76,6 @@ struct Service {
     roots: Vec<RootRuntime>,
     owner: Owner,
     notifier: Notifier,
-    processor: Processor,
-    hooks: TestHooks,
     running: HashMap<i64, Running>,
     results_tx: mpsc::UnboundedSender<(i64, JobResult)>,
     hints_tx: mpsc::Sender<usize>,
@@ -111,6 +92,9 @@ struct Service {
 
 const DEBOUNCE: Duration = Duration::from_millis(100);
 const CLAIM_POLL: Duration = Duration::from_secs(1);
+/// A job's supervisor kills its worker at `job_timeout_secs`; the service gives up on the
+/// supervisor itself (stuck publishing on a hung file system) only this much later.
+const SUPERVISOR_GRACE: Duration = Duration::from_secs(120);
 
 fn secs(s: f64) -> Duration {
     Duration::from_secs_f64(s.max(0.0))
@@ -124,12 +108,7 @@ fn root_identity(path: &Path) -> Option<(u64, u64)> {
 }
 
 /// Runs the daemon until SIGTERM/SIGINT. `config` must come from [`DaemonConfig::locate`].
-pub fn run(
-    config: DaemonConfig,
-    origin: ConfigSource,
-    processor: Processor,
-    hooks: TestHooks,
-) -> Result<(), ServiceError> {
+pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceError> {
     tracing::info!(config = %origin, version = env!("CARGO_PKG_VERSION"), "scanmill daemon starting");
     // Make the folders first when asked, so that validation sees them.
     if config.create_missing_dirs {
@@ -232,8 +211,6 @@ pub fn run(
         roots,
         owner: Owner::current(),
         notifier: Notifier::from_env(),
-        processor,
-        hooks,
         running: HashMap::new(),
         results_tx,
         hints_tx,
@@ -547,9 +524,8 @@ impl Service {
                 config_hash: self.config_hash.clone(),
                 owner: self.owner.clone(),
                 max_input_bytes: self.config.max_input_bytes,
-                processor: self.processor.clone(),
+                limits: self.worker_limits(&job),
                 gate: gate.clone(),
-                stage_delay: self.hooks.stage_delay,
             };
             let tx = self.results_tx.clone();
             let id = job.id;
@@ -574,11 +550,28 @@ impl Service {
                 Running {
                     job,
                     gate,
-                    deadline: Instant::now() + secs(self.config.job_timeout_secs),
+                    deadline: Instant::now()
+                        + secs(self.config.job_timeout_secs)
+                        + SUPERVISOR_GRACE,
                 },
             );
         }
         Ok(())
+    }
+
+    /// The limits of one job's worker process.
+    fn worker_limits(&self, job: &ClaimedJob) -> WorkerLimits {
+        let members = job.inputs.iter().map(|m| {
+            (
+                m.size,
+                m.rel_path.as_bytes().to_ascii_lowercase().ends_with(b".gz"),
+            )
+        });
+        WorkerLimits {
+            memory_bytes: self.config.job_memory_bytes_for(members),
+            cpu_secs: self.config.job_cpu_secs(),
+            wall: secs(self.config.job_timeout_secs),
+        }
     }
 
     fn retry(&self) -> (f64, f64) {
@@ -634,8 +627,9 @@ impl Service {
             let f = Finish::Failed {
                 kind: "timeout".into(),
                 message: format!(
-                    "ran longer than job_timeout_secs = {}; abandoned (its thread finishes in the background and cannot publish)",
-                    self.config.job_timeout_secs
+                    "its supervisor did not finish within job_timeout_secs = {} plus {} s (stuck writing or publishing?); abandoned, it cannot publish",
+                    self.config.job_timeout_secs,
+                    SUPERVISOR_GRACE.as_secs()
                 ),
                 transient: true,
             };
