@@ -594,7 +594,7 @@ impl Service {
                         tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
                     }
                     (Finish::Failed { kind, message, .. }, s) => {
-                        tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {message}")
+                        tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {}", crate::text::bounded(message, crate::text::MAX_SHOWN))
                     }
                     (Finish::Interrupted { .. }, _) => {}
                 }
