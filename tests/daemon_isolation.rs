@@ -200,3 +200,33 @@ fn a_spinning_worker_is_stopped_by_its_cpu_limit() {
         "{log:?}"
     );
 }
+
+#[test]
+fn a_database_locked_longer_than_the_busy_timeout_is_waited_out() {
+    let lab = Lab::new(0.3, "");
+    let mut d = KillOnDrop(lab.start(&[("SCANMILL_TEST_STEP_DELAY_MS", "300")]));
+    std::fs::write(lab.inbox().join("a.ply"), bunny_variant("a")).unwrap();
+    assert!(
+        wait_for(60, || lab.count_state("running") == 1),
+        "{:?}\n{}",
+        lab.jobs(),
+        lab.logs()
+    );
+    // Another process takes the write lock for longer than SQLite's 10 s busy timeout,
+    // while the job finishes and a second scan arrives.
+    let db = lab.dir.path().join("state/scanmill.sqlite");
+    let conn = rusqlite_open(&db);
+    conn.execute_batch("BEGIN IMMEDIATE").unwrap();
+    std::fs::write(lab.inbox().join("b.ply"), bunny_variant("b")).unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(14));
+    conn.execute_batch("COMMIT").unwrap();
+    drop(conn);
+    assert!(d.0.try_wait().unwrap().is_none(), "{}", lab.logs());
+    assert!(
+        wait_for(60, || lab.count_state("done") == 2),
+        "{:?}\n{}",
+        lab.jobs(),
+        lab.logs()
+    );
+    assert!(lab.logs().contains("write lock"), "{}", lab.logs());
+}

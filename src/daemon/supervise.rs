@@ -72,7 +72,8 @@ impl ProcessFailure {
 /// How a worker ended.
 #[derive(Debug)]
 pub enum WorkerOutcome {
-    Done(Box<Report>),
+    /// The worker's report, and the wall time from starting the worker to reaping it.
+    Done(Box<Report>, Duration),
     Failed(ProcessFailure),
     /// Killed because the job was abandoned (daemon stopping); nothing to record as failed.
     Abandoned,
@@ -469,7 +470,7 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
     }
     let code = libc::WEXITSTATUS(status);
     match ended.final_event {
-        Some(Event::Done { report }) if code == 0 => WorkerOutcome::Done(report),
+        Some(Event::Done { report }) if code == 0 => WorkerOutcome::Done(report, ended.wall),
         Some(Event::Failed {
             kind,
             message,

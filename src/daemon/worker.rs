@@ -62,7 +62,7 @@ pub struct JobSpec {
 }
 
 /// What a finished thread reports.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub enum JobResult {
     Finished {
         finish: Finish,
@@ -198,7 +198,13 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         tracing::debug!(job_id = job.id, index, total, stage = name, "stage");
     };
     let report = match supervise::run(&request, &spec.gate, &mut on_stage) {
-        WorkerOutcome::Done(r) => *r,
+        WorkerOutcome::Done(r, wall) => {
+            // What isolation costs: starting the worker, loading the recipe there, and
+            // handing the report over, beyond the processing itself.
+            let isolation_ms = wall.as_secs_f64() * 1e3 - r.total_ms;
+            tracing::info!(isolation_ms, process_ms = r.total_ms, "worker finished");
+            *r
+        }
         WorkerOutcome::Abandoned => {
             tracing::warn!("abandoned while running; worker killed");
             return None;
