@@ -127,6 +127,12 @@ pub struct WatchConfig {
     /// every member exists) the scan is ready at once, without waiting for the quiet period.
     #[serde(default)]
     pub marker: Option<String>,
+    /// Follow symbolic links inside the folder. Off (the default): a scan or a file it
+    /// names that is a link, or lies behind one, is refused and recorded as waiting with
+    /// the reason. On: a link is followed only when its target is inside this folder too.
+    /// Linked folders are never entered by the walk either way.
+    #[serde(default)]
+    pub follow_symlinks: bool,
 }
 
 /// The whole daemon configuration.
@@ -210,6 +216,7 @@ impl DaemonConfig {
                 include: Vec::new(),
                 exclude: Vec::new(),
                 marker: None,
+                follow_symlinks: false,
             }],
         }
     }
@@ -615,6 +622,14 @@ mod tests {
              [[watch]]\npath = \"/tmp/x/y\"\noutput = \"/tmp/o2\"\n",
         );
         assert!(c.validate().iter().any(|p| p.contains("overlap")));
+    }
+
+    #[test]
+    fn follow_symlinks_is_off_unless_set() {
+        let c = parse("[[watch]]\npath = \"a\"\noutput = \"b\"\n");
+        assert!(!c.watch[0].follow_symlinks);
+        let c = parse("[[watch]]\npath = \"a\"\noutput = \"b\"\nfollow_symlinks = true\n");
+        assert!(c.watch[0].follow_symlinks);
     }
 
     #[test]

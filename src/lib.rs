@@ -12,3 +12,4 @@ pub mod process;
 pub mod recipe;
 pub mod report;
 pub mod store;
+pub mod text;

@@ -220,7 +220,7 @@ pub fn process_scan_with_texture(
     }
     let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
     let input_counts = MeshCounts::of(&mesh);
-    tracing::info!(input = %input.display(), faces = input_counts.faces, load_ms, "loaded");
+    tracing::info!(input = %crate::text::escape_path(input), faces = input_counts.faces, load_ms, "loaded");
 
     // The steps, then the final metrics against the input and the preview (a clone of the
     // input is kept while the steps run, unless the recipe wants neither).

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 /// A file and the SHA-256 of its content.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FileHash {
+    #[serde(serialize_with = "crate::text::serialize_path")]
     pub path: PathBuf,
     pub sha256: String,
     pub bytes: u64,
@@ -63,6 +64,7 @@ impl MeshCounts {
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct InputReport {
+    #[serde(serialize_with = "crate::text::serialize_path")]
     pub path: PathBuf,
     /// SHA-256 over the mesh file and every texture it references, in a fixed order.
     pub content_hash: String,

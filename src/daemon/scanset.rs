@@ -8,13 +8,25 @@
 //!
 //! File events never make a set ready: the [`Tracker`] decides from `stat` alone, so a
 //! lost, duplicated or reordered event can delay a scan but never corrupt or repeat it.
+//!
+//! Confinement: a member is only ever a regular file inside the watched folder. Every
+//! candidate and every reference is resolved with its symbolic links and must lie in the
+//! canonical root; with `follow_symlinks = false` (the default) a path that goes through
+//! any link at all is refused, and FIFOs, devices and sockets are refused from `stat`,
+//! never opened. A refused reference holds its set back with the reason recorded.
+//!
+//! The service loop only ever `stat`s. Reading references and hashing run as [`Work`] on
+//! the content thread ([`content`]), bounded, and come back as [`Done`] messages.
+
+pub mod content;
+
+pub use content::{Content, ContentError, Done, MTL_MAX_BYTES, MTLLIB_SCAN_BYTES, RefKind, Work};
 
 use super::glob::{Filter, PrimaryKind, primary_kind};
-use crate::report::FileHash;
-use crate::store::InputMember;
+use crate::store::{InputMember, RelPath};
+use crate::text::{escape_path, escape_str};
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::io::{BufRead, BufReader, Read};
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -38,75 +50,117 @@ impl StatSig {
                 "not a regular file",
             ));
         }
-        Ok(StatSig {
+        Ok(StatSig::from_meta(&m))
+    }
+
+    fn from_meta(m: &std::fs::Metadata) -> StatSig {
+        StatSig {
             size: m.size(),
             mtime_ns: m.mtime() * 1_000_000_000 + m.mtime_nsec(),
             ino: m.ino(),
             dev: m.dev(),
-        })
+        }
+    }
+}
+
+/// Where a watched folder's members may be: its path as configured, the same resolved
+/// (symbolic links and all), and whether links inside it are followed.
+#[derive(Debug, Clone)]
+pub struct Confine {
+    pub root: PathBuf,
+    pub canonical: PathBuf,
+    pub follow_symlinks: bool,
+}
+
+/// What a look (`stat`, no opening) at a would-be member found.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Look {
+    /// A regular file inside the root: its signature, the resolved path (what is opened),
+    /// and its path relative to the root.
+    Regular {
+        sig: StatSig,
+        real: PathBuf,
+        rel: RelPath,
+    },
+    /// Not there (yet), or a dangling link.
+    Missing,
+    /// Never a member: the rule it breaks.
+    Refused(String),
+    /// `stat` failed otherwise (permissions, I/O): the error.
+    Unreadable(String),
+}
+
+impl Confine {
+    /// Looks at `path` (lexically clean, e.g. from the walk or [`resolve`]).
+    pub fn look(&self, path: &Path) -> Look {
+        let Some(rel) = RelPath::under(&self.root, path) else {
+            return Look::Refused("outside the watched folder".into());
+        };
+        let real = match std::fs::canonicalize(path) {
+            Ok(p) => p,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Look::Missing,
+            Err(e) => return Look::Unreadable(e.to_string()),
+        };
+        if !real.starts_with(&self.canonical) {
+            return Look::Refused("a symbolic link that leads outside the watched folder".into());
+        }
+        if !self.follow_symlinks && real != self.canonical.join(rel.as_path()) {
+            return Look::Refused(
+                "goes through a symbolic link, not followed (follow_symlinks = false)".into(),
+            );
+        }
+        let meta = match std::fs::symlink_metadata(&real) {
+            Ok(m) => m,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Look::Missing,
+            Err(e) => return Look::Unreadable(e.to_string()),
+        };
+        if !meta.is_file() {
+            return Look::Refused(
+                "not a regular file (a FIFO, device, socket or folder); never opened".into(),
+            );
+        }
+        Look::Regular {
+            sig: StatSig::from_meta(&meta),
+            real,
+            rel,
+        }
     }
 }
 
 /// One member of a set.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Member {
+    /// Under the root as named (what is shown and recorded).
     pub path: PathBuf,
+    /// Resolved (what the content thread opens).
+    pub real: PathBuf,
+    pub rel: RelPath,
     pub role: &'static str,
+    pub sig: StatSig,
 }
 
-/// The members a primary file names, and the references that could not be found.
+/// The members a primary file names, and the references that are not members.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SetSpec {
     /// Primary first, then MTLs, then textures, in reference order, without repeats.
     pub members: Vec<Member>,
     /// References to files that do not exist (yet): "james.obj.mtl (named by james.obj)".
     pub missing: Vec<String>,
+    /// References that can never be members (outside the root, a link not followed, not
+    /// a regular file, too large), each with its reason.
+    pub refused: Vec<String>,
 }
 
-/// The rest of a line after a keyword, or `None` if the line is another statement.
-fn statement<'a>(line: &'a str, keyword: &str) -> Option<&'a str> {
-    let line = line.trim_start();
-    let rest = line.strip_prefix(keyword)?;
-    if rest.is_empty() || rest.starts_with(char::is_whitespace) {
-        Some(rest.split('#').next().unwrap_or("").trim())
-    } else {
-        None
+impl SetSpec {
+    /// The signatures that decide whether the set changed: members', then `None` for each
+    /// reference that is not a member.
+    fn sigs(&self) -> Vec<Option<StatSig>> {
+        self.members
+            .iter()
+            .map(|m| Some(m.sig))
+            .chain(self.missing.iter().chain(&self.refused).map(|_| None))
+            .collect()
     }
-}
-
-/// `mtllib` names of an OBJ, in order. Reads the whole file as text lines (a `.gz` through
-/// the decoder); cheap next to processing, and cached by the caller per file version.
-pub fn obj_mtllibs(path: &Path) -> std::io::Result<Vec<String>> {
-    let file = std::fs::File::open(path)?;
-    let reader: Box<dyn Read> = if path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gz"))
-    {
-        Box::new(flate2::read::MultiGzDecoder::new(file))
-    } else {
-        Box::new(file)
-    };
-    let mut names = Vec::new();
-    let mut reader = BufReader::with_capacity(1 << 16, reader);
-    let mut buf = Vec::new();
-    loop {
-        buf.clear();
-        if reader.read_until(b'\n', &mut buf)? == 0 {
-            break;
-        }
-        // Only lines that start with "mtllib" matter; skip the rest without decoding.
-        let trimmed = buf.trim_ascii_start();
-        if !trimmed.starts_with(b"mtllib") {
-            continue;
-        }
-        let line = String::from_utf8_lossy(trimmed);
-        if let Some(arg) = statement(line.trim_end(), "mtllib")
-            && !arg.is_empty()
-        {
-            names.push(arg.to_string());
-        }
-    }
-    Ok(names)
 }
 
 /// Whether an MTL keyword names a file (`map_Kd`, `map_Bump`, `bump`, `disp`, `decal`,
@@ -153,10 +207,8 @@ pub fn map_file_name(args: &str) -> &str {
     }
 }
 
-/// File names an MTL refers to, in order.
-pub fn mtl_maps(path: &Path) -> std::io::Result<Vec<String>> {
-    let bytes = std::fs::read(path)?;
-    let text = String::from_utf8_lossy(&bytes);
+/// File names an MTL's text refers to, in order (`\` read as `/`).
+pub fn parse_mtl_maps(text: &str) -> Vec<String> {
     let mut out = Vec::new();
     for line in text.lines() {
         let line = line.trim();
@@ -170,13 +222,12 @@ pub fn mtl_maps(path: &Path) -> std::io::Result<Vec<String>> {
             }
         }
     }
-    Ok(out)
+    out
 }
 
-/// Resolves a reference against the referring file's folder. A name that does not exist
-/// as written is also tried with whitespace splitting for `mtllib` (several names on one
-/// line), which the caller handles.
-fn resolve(dir: &Path, name: &str) -> PathBuf {
+/// Resolves a reference against the referring file's folder, lexically (`.` and `..`
+/// folded); whether the result is allowed is [`Confine::look`]'s decision.
+pub fn resolve(dir: &Path, name: &str) -> PathBuf {
     let joined = dir.join(name.replace('\\', "/"));
     let mut out = PathBuf::new();
     for c in joined.components() {
@@ -191,29 +242,24 @@ fn resolve(dir: &Path, name: &str) -> PathBuf {
     out
 }
 
-/// Caches parsed references per file version, so that a walk re-reads nothing that did not
-/// change.
+/// Parsed references per file version (keyed by the resolved path), so that a walk
+/// re-reads nothing that did not change. Unreadable files are remembered too, so that
+/// they are not read again until they change.
 #[derive(Default)]
 pub struct RefCache {
-    entries: HashMap<PathBuf, (StatSig, Vec<String>)>,
+    entries: HashMap<PathBuf, (StatSig, Result<Vec<String>, String>)>,
 }
 
 impl RefCache {
-    fn get(
-        &mut self,
-        path: &Path,
-        sig: StatSig,
-        parse: fn(&Path) -> std::io::Result<Vec<String>>,
-    ) -> std::io::Result<Vec<String>> {
-        if let Some((cached, names)) = self.entries.get(path)
-            && *cached == sig
-        {
-            return Ok(names.clone());
-        }
-        let names = parse(path)?;
+    fn get(&self, path: &Path, sig: StatSig) -> Option<&Result<Vec<String>, String>> {
         self.entries
-            .insert(path.to_path_buf(), (sig, names.clone()));
-        Ok(names)
+            .get(path)
+            .filter(|(cached, _)| *cached == sig)
+            .map(|(_, r)| r)
+    }
+
+    fn insert(&mut self, path: PathBuf, sig: StatSig, names: Result<Vec<String>, String>) {
+        self.entries.insert(path, (sig, names));
     }
 
     fn forget(&mut self, path: &Path) {
@@ -221,32 +267,60 @@ impl RefCache {
     }
 }
 
-/// The members of the set whose primary is `primary` (with its current signature).
+/// Why [`set_spec`] has no answer yet.
+#[derive(Debug)]
+pub enum SpecError {
+    /// This file's references must be read first (off the loop).
+    Read(Work),
+    /// The set cannot be made: the reason.
+    Failed(String),
+}
+
+/// The members of the set whose primary is `primary` (found regular by `look`), from the
+/// references already in `cache`; asks for the first read that is missing.
 pub fn set_spec(
     primary: &Path,
-    primary_sig: StatSig,
-    cache: &mut RefCache,
-) -> std::io::Result<SetSpec> {
+    look: (StatSig, PathBuf, RelPath),
+    confine: &Confine,
+    cache: &RefCache,
+) -> Result<SetSpec, SpecError> {
+    let (primary_sig, primary_real, primary_rel) = look;
+    let name = primary_rel.file_name_display();
     let mut spec = SetSpec {
         members: vec![Member {
             path: primary.to_path_buf(),
+            real: primary_real.clone(),
+            rel: primary_rel,
             role: "mesh",
+            sig: primary_sig,
         }],
-        missing: Vec::new(),
+        ..SetSpec::default()
     };
-    let name = primary
+    let is_obj = primary
         .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    if primary_kind(&name) != Some(PrimaryKind::Obj) {
+        .is_some_and(|n| primary_kind(&n.to_string_lossy()) == Some(PrimaryKind::Obj));
+    if !is_obj {
         return Ok(spec);
     }
+    let read = |path: &PathBuf, sig: StatSig, kind: RefKind| {
+        SpecError::Read(Work::Refs {
+            primary: primary.to_path_buf(),
+            path: path.clone(),
+            sig,
+            kind,
+        })
+    };
+    let arguments = match cache.get(&primary_real, primary_sig) {
+        None => return Err(read(&primary_real, primary_sig, RefKind::Obj)),
+        Some(Err(reason)) => return Err(SpecError::Failed(reason.clone())),
+        Some(Ok(names)) => names.clone(),
+    };
     let dir = primary.parent().unwrap_or(Path::new("."));
     let mut seen: BTreeSet<PathBuf> = BTreeSet::new();
-    for argument in cache.get(primary, primary_sig, obj_mtllibs)? {
+    for argument in arguments {
         // The whole argument if that file exists (names with spaces), else its words.
         let whole = resolve(dir, &argument);
-        let names: Vec<String> = if whole.is_file() {
+        let names: Vec<String> = if matches!(confine.look(&whole), Look::Regular { .. }) {
             vec![argument.clone()]
         } else {
             argument.split_whitespace().map(str::to_string).collect()
@@ -256,30 +330,53 @@ pub fn set_spec(
             if !seen.insert(mtl.clone()) {
                 continue;
             }
-            let mtl_sig = match StatSig::of(&mtl) {
-                Ok(s) => s,
-                Err(_) => {
-                    spec.missing.push(format!("{mtl_name} (named by {name})"));
+            let named = format!("{} (named by {name})", escape_str(&mtl_name));
+            let (sig, real, rel) = match confine.look(&mtl) {
+                Look::Regular { sig, real, rel } => (sig, real, rel),
+                other => {
+                    spec.note(named, other);
                     continue;
                 }
             };
+            if sig.size > MTL_MAX_BYTES {
+                spec.refused.push(content::too_large_mtl(&mtl, sig.size));
+                continue;
+            }
+            let maps = match cache.get(&real, sig) {
+                None => return Err(read(&real, sig, RefKind::Mtl)),
+                Some(Err(reason)) => {
+                    spec.refused.push(reason.clone());
+                    continue;
+                }
+                Some(Ok(maps)) => maps.clone(),
+            };
             spec.members.push(Member {
                 path: mtl.clone(),
+                real,
+                rel,
                 role: "mtl",
+                sig,
             });
             let mtl_dir = mtl.parent().unwrap_or(dir).to_path_buf();
-            for texture in cache.get(&mtl, mtl_sig, mtl_maps)? {
+            for texture in maps {
                 let path = resolve(&mtl_dir, &texture);
-                if seen.insert(path.clone()) {
-                    if path.is_file() {
-                        spec.members.push(Member {
-                            path,
-                            role: "texture",
-                        });
-                    } else {
-                        spec.missing
-                            .push(format!("{texture} (named by {mtl_name})"));
-                    }
+                if !seen.insert(path.clone()) {
+                    continue;
+                }
+                let named = format!(
+                    "{} (named by {})",
+                    escape_str(&texture),
+                    escape_str(&mtl_name)
+                );
+                match confine.look(&path) {
+                    Look::Regular { sig, real, rel } => spec.members.push(Member {
+                        path,
+                        real,
+                        rel,
+                        role: "texture",
+                        sig,
+                    }),
+                    other => spec.note(named, other),
                 }
             }
         }
@@ -287,12 +384,24 @@ pub fn set_spec(
     Ok(spec)
 }
 
+impl SetSpec {
+    /// Files a reference that is not a member under missing or refused.
+    fn note(&mut self, named: String, look: Look) {
+        match look {
+            Look::Regular { .. } => {}
+            Look::Missing => self.missing.push(named),
+            Look::Refused(why) => self.refused.push(format!("{named}: {why}")),
+            Look::Unreadable(e) => self.refused.push(format!("{named}: cannot read: {e}")),
+        }
+    }
+}
+
 /// A set that is ready: hashed, re-checked, with its identity.
 #[derive(Debug, Clone)]
 pub struct ReadySet {
     pub root_index: usize,
     pub primary: PathBuf,
-    pub rel_path: String,
+    pub rel_path: RelPath,
     pub set_hash: String,
     pub inputs: Vec<InputMember>,
     pub sigs: Vec<StatSig>,
@@ -302,17 +411,18 @@ pub struct ReadySet {
 #[derive(Debug, Clone)]
 pub enum Event {
     Ready(ReadySet),
-    /// Waiting too long for a member, or unreadable: recorded in the `waiting` table.
+    /// Waiting too long for a member, refused, too large or unreadable: recorded in the
+    /// `waiting` table with the reason.
     Waiting {
         root_index: usize,
-        rel_path: String,
+        rel_path: RelPath,
         reason: String,
         first_seen_ms: i64,
     },
     /// No longer waiting (gone, or became a job).
     NotWaiting {
         root_index: usize,
-        rel_path: String,
+        rel_path: RelPath,
     },
 }
 
@@ -323,6 +433,8 @@ pub struct RootSpec {
     pub filter: Filter,
     pub quiet: Duration,
     pub marker: Option<String>,
+    /// Follow symbolic links inside the folder (their targets must still be inside it).
+    pub follow_symlinks: bool,
 }
 
 impl RootSpec {
@@ -338,61 +450,74 @@ impl RootSpec {
 #[derive(Debug)]
 struct Tracked {
     root_index: usize,
+    rel: RelPath,
     first_seen: Instant,
     first_seen_ms: i64,
     last_change: Instant,
-    /// Signatures at the last look, primary first, `None` for missing members.
+    /// Signatures at the last look, primary first, `None` for references not members.
     sigs: Vec<Option<StatSig>>,
     /// The signatures that were handed over (enqueued or already known): nothing to do
     /// until they change.
     handled: Option<Vec<Option<StatSig>>>,
-    /// Reported as waiting (so the report is made once, and withdrawn when resolved).
-    reported: bool,
-    /// Unreadable: do not retry before this.
+    /// The reason reported as waiting, if any (reported again only when it changes, and
+    /// withdrawn when resolved).
+    reported: Option<String>,
+    /// Unreadable, refused or too large: do not look again before this.
     retry_at: Option<Instant>,
     /// The mesh file changed since the previous look (its references are not read yet).
     changing: bool,
+    /// Content work for this set is on the content thread: wait for its result.
+    busy: bool,
+    /// The members being hashed.
+    hashing: Option<Vec<Member>>,
 }
 
 /// Known input sets from the database, keyed by (root, primary rel_path): the signatures
 /// recorded with their jobs. A set on disk that matches needs no hashing at start-up.
-pub type Known = HashMap<(String, String), Vec<crate::store::MemberSig>>;
+pub type Known = HashMap<(String, RelPath), Vec<crate::store::MemberSig>>;
 
-/// Decides which sets are ready. Owned by the service loop; all file-system work is
-/// synchronous and cheap (stat), except hashing a set once it is quiet.
+/// Decides which sets are ready. Owned by the service loop, which it never blocks: its
+/// own file-system work is `stat`; reading and hashing go to [`Content`].
 pub struct Tracker {
     roots: Vec<RootSpec>,
+    /// Each root resolved (refreshed at every walk); `None` while it is unavailable.
+    canonical: Vec<Option<PathBuf>>,
     sets: BTreeMap<PathBuf, Tracked>,
     refs: RefCache,
     known: Known,
+    content: Content,
     /// Report a set with missing members after this long.
     incomplete_after: Duration,
     /// Re-check an unreadable set this often.
     unreadable_retry: Duration,
+    /// A set larger than this (all members) is not hashed.
+    max_input_bytes: u64,
 }
 
-/// Relative `/`-separated path of `path` under `root`, or the absolute path if outside.
-pub fn rel_to(root: &Path, path: &Path) -> String {
-    match path.strip_prefix(root) {
-        Ok(rel) => rel.to_string_lossy().into_owned(),
-        Err(_) => path.to_string_lossy().into_owned(),
-    }
+/// The settings of a [`Tracker`] besides its roots.
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    pub incomplete_after: Duration,
+    pub unreadable_retry: Duration,
+    pub max_input_bytes: u64,
 }
 
 impl Tracker {
-    pub fn new(
-        roots: Vec<RootSpec>,
-        known: Known,
-        incomplete_after: Duration,
-        unreadable_retry: Duration,
-    ) -> Tracker {
+    pub fn new(roots: Vec<RootSpec>, known: Known, limits: Limits, content: Content) -> Tracker {
+        let canonical = roots
+            .iter()
+            .map(|r| std::fs::canonicalize(&r.path).ok())
+            .collect();
         Tracker {
             roots,
+            canonical,
             sets: BTreeMap::new(),
             refs: RefCache::default(),
             known,
-            incomplete_after,
-            unreadable_retry,
+            content,
+            incomplete_after: limits.incomplete_after,
+            unreadable_retry: limits.unreadable_retry,
+            max_input_bytes: limits.max_input_bytes,
         }
     }
 
@@ -401,9 +526,14 @@ impl Tracker {
     }
 
     /// Remembers a set's signatures as recorded in the database (after an enqueue).
-    pub fn remember(&mut self, root: &str, rel_path: &str, members: Vec<crate::store::MemberSig>) {
+    pub fn remember(
+        &mut self,
+        root: &str,
+        rel_path: &RelPath,
+        members: Vec<crate::store::MemberSig>,
+    ) {
         self.known
-            .insert((root.to_string(), rel_path.to_string()), members);
+            .insert((root.to_string(), rel_path.clone()), members);
     }
 
     /// A ready set that could not be handed over (the database was busy): it becomes
@@ -422,8 +552,22 @@ impl Tracker {
             .count()
     }
 
+    /// Number of sets whose content work (reading, hashing) is under way.
+    pub fn busy(&self) -> usize {
+        self.sets.values().filter(|t| t.busy).count()
+    }
+
+    fn confine(&self, root_index: usize) -> Option<Confine> {
+        Some(Confine {
+            root: self.roots[root_index].path.clone(),
+            canonical: self.canonical[root_index].clone()?,
+            follow_symlinks: self.roots[root_index].follow_symlinks,
+        })
+    }
+
     /// Lists every candidate primary file under a root (recursively; hidden and temporary
-    /// names skipped, symlinked folders not followed).
+    /// names skipped, symlinked folders never entered). Links and special files with a
+    /// mesh name are candidates: looking at them refuses them with a reason.
     pub fn walk(&self, root_index: usize) -> Vec<PathBuf> {
         let root = &self.roots[root_index];
         let mut out = Vec::new();
@@ -440,10 +584,12 @@ impl Tracker {
                     if !super::glob::is_ignored_name(&name) {
                         stack.push(path);
                     }
-                } else if primary_kind(&name).is_some()
-                    && root.filter.accepts(&rel_to(&root.path, &path))
-                {
-                    out.push(path);
+                } else if primary_kind(&name).is_some() {
+                    // Patterns match the name as text (bytes that are not UTF-8 as U+FFFD).
+                    let rel = path.strip_prefix(&root.path).unwrap_or(&path);
+                    if root.filter.accepts(&rel.to_string_lossy()) {
+                        out.push(path);
+                    }
                 }
             }
         }
@@ -453,6 +599,7 @@ impl Tracker {
 
     /// A full reconcile of one root: walk it, forget sets that are gone, look at every set.
     pub fn reconcile_root(&mut self, root_index: usize, now: Instant, now_ms: i64) -> Vec<Event> {
+        self.canonical[root_index] = std::fs::canonicalize(&self.roots[root_index].path).ok();
         let found: BTreeSet<PathBuf> = self.walk(root_index).into_iter().collect();
         let mut events = Vec::new();
         let gone: Vec<PathBuf> = self
@@ -464,52 +611,106 @@ impl Tracker {
         for p in gone {
             if let Some(t) = self.sets.remove(&p) {
                 self.refs.forget(&p);
-                if t.reported {
+                if t.reported.is_some() {
                     events.push(Event::NotWaiting {
                         root_index,
-                        rel_path: rel_to(&self.roots[root_index].path, &p),
+                        rel_path: t.rel,
                     });
                 }
             }
         }
+        let root = self.roots[root_index].path.clone();
         for primary in found {
+            let Some(rel) = RelPath::under(&root, &primary) else {
+                continue;
+            };
             self.sets.entry(primary.clone()).or_insert_with(|| Tracked {
                 root_index,
+                rel,
                 first_seen: now,
                 first_seen_ms: now_ms,
                 last_change: now,
                 sigs: Vec::new(),
                 handled: None,
-                reported: false,
+                reported: None,
                 retry_at: None,
                 changing: false,
+                busy: false,
+                hashing: None,
             });
-            events.extend(self.evaluate(&primary, now, now_ms));
+            events.extend(self.evaluate(&primary, now));
         }
+        self.drain_inline(now, &mut events);
         events
     }
 
     /// Looks again at the sets not yet handed over (between walks), e.g. when a quiet
     /// period ends.
     pub fn recheck_pending(&mut self, now: Instant, now_ms: i64) -> Vec<Event> {
+        let _ = now_ms;
         let pending: Vec<PathBuf> = self
             .sets
             .iter()
-            .filter(|(_, t)| t.handled.as_ref() != Some(&t.sigs))
+            .filter(|(_, t)| t.handled.as_ref() != Some(&t.sigs) && !t.busy)
             .map(|(p, _)| p.clone())
             .collect();
         let mut events = Vec::new();
         for p in pending {
-            events.extend(self.evaluate(&p, now, now_ms));
+            events.extend(self.evaluate(&p, now));
         }
+        self.drain_inline(now, &mut events);
         events
+    }
+
+    /// Takes a result of the content thread.
+    pub fn content_done(&mut self, done: Done, now: Instant) -> Vec<Event> {
+        let mut events = self.apply(done, now);
+        self.drain_inline(now, &mut events);
+        events
+    }
+
+    fn drain_inline(&mut self, now: Instant, events: &mut Vec<Event>) {
+        while let Some(done) = self.content.take_inline() {
+            events.extend(self.apply(done, now));
+        }
+    }
+
+    fn apply(&mut self, done: Done, now: Instant) -> Vec<Event> {
+        match done {
+            Done::Refs {
+                primary,
+                path,
+                sig,
+                names,
+            } => {
+                let changed = names == Err(ContentError::Changed);
+                match names {
+                    Ok(n) => self.refs.insert(path, sig, Ok(n)),
+                    Err(ContentError::Unreadable(why)) => self.refs.insert(path, sig, Err(why)),
+                    Err(ContentError::Changed) => {}
+                }
+                let Some(t) = self.sets.get_mut(&primary) else {
+                    return Vec::new();
+                };
+                t.busy = false;
+                if changed {
+                    // Look again once it holds still.
+                    t.last_change = now;
+                    return Vec::new();
+                }
+                self.evaluate(&primary, now)
+            }
+            Done::Hash {
+                primary, sha256, ..
+            } => self.hashed(&primary, sha256, now),
+        }
     }
 
     /// When the next pending set could become ready (or should be looked at again).
     pub fn next_deadline(&self, now: Instant) -> Option<Instant> {
         self.sets
             .values()
-            .filter(|t| t.handled.as_ref() != Some(&t.sigs))
+            .filter(|t| t.handled.as_ref() != Some(&t.sigs) && !t.busy)
             .map(|t| {
                 if let Some(at) = t.retry_at {
                     return at;
@@ -525,7 +726,7 @@ impl Tracker {
                     // and when it is time to report the set.
                     let report_at = t.first_seen + self.incomplete_after;
                     let soon = now + Duration::from_secs(2);
-                    if t.reported {
+                    if t.reported.is_some() {
                         soon
                     } else {
                         soon.min(report_at.max(now))
@@ -537,26 +738,36 @@ impl Tracker {
             .min()
     }
 
-    fn evaluate(&mut self, primary: &Path, now: Instant, now_ms: i64) -> Vec<Event> {
+    fn evaluate(&mut self, primary: &Path, now: Instant) -> Vec<Event> {
         let Some(t) = self.sets.get(primary) else {
             return Vec::new();
         };
-        let root_index = t.root_index;
-        let root = self.roots[root_index].clone();
-        let rel_path = rel_to(&root.path, primary);
-        if let Some(at) = t.retry_at
-            && now < at
-        {
+        if t.busy || t.retry_at.is_some_and(|at| now < at) {
             return Vec::new();
         }
-        let primary_sig = match StatSig::of(primary) {
-            Ok(s) => s,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                // Gone (or a dangling link): the next walk forgets it.
-                return self.unreadable(primary, &rel_path, format!("cannot read: {e}"), now);
-            }
-            Err(e) => return self.unreadable(primary, &rel_path, format!("cannot read: {e}"), now),
+        let root_index = t.root_index;
+        let Some(confine) = self.confine(root_index) else {
+            return Vec::new();
         };
+        let root = &self.roots[root_index];
+        let marker_ready = root.marker_path(primary).is_some_and(|m| m.is_file());
+        let quiet = root.quiet;
+        let root_key = root.path.to_string_lossy().into_owned();
+        let shown = escape_path(primary);
+        let look = match confine.look(primary) {
+            Look::Regular { sig, real, rel } => (sig, real, rel),
+            Look::Missing => {
+                // Gone (or a dangling link): the next walk forgets it.
+                return self.stuck(primary, format!("cannot read {shown}: no such file"), now);
+            }
+            Look::Refused(why) => {
+                return self.stuck(primary, format!("refused: {shown}: {why}"), now);
+            }
+            Look::Unreadable(e) => {
+                return self.stuck(primary, format!("cannot read {shown}: {e}"), now);
+            }
+        };
+        let primary_sig = look.0;
         // Parse references only once the primary has held still for one look, so that a
         // file being written is not re-read on every event.
         let previous_primary = t.sigs.first().copied().flatten();
@@ -564,29 +775,28 @@ impl Tracker {
             .file_name()
             .is_some_and(|n| primary_kind(&n.to_string_lossy()) == Some(PrimaryKind::Obj));
         let changing = is_obj && !(previous_primary == Some(primary_sig) || t.sigs.is_empty());
-        let spec = if !changing {
-            match set_spec(primary, primary_sig, &mut self.refs) {
-                Ok(s) => s,
-                Err(e) => {
-                    return self.unreadable(primary, &rel_path, format!("cannot read: {e}"), now);
-                }
-            }
-        } else {
+        let spec = if changing {
+            let (sig, real, rel) = look;
             SetSpec {
                 members: vec![Member {
                     path: primary.to_path_buf(),
+                    real,
+                    rel,
                     role: "mesh",
+                    sig,
                 }],
                 missing: vec!["(mesh file still changing)".into()],
+                refused: Vec::new(),
+            }
+        } else {
+            match set_spec(primary, look, &confine, &self.refs) {
+                Ok(s) => s,
+                Err(SpecError::Read(work)) => return self.submit(primary, work, now),
+                Err(SpecError::Failed(reason)) => return self.stuck(primary, reason, now),
             }
         };
-        let mut sigs: Vec<Option<StatSig>> = spec
-            .members
-            .iter()
-            .map(|m| StatSig::of(&m.path).ok())
-            .collect();
-        // Missing references count as members that do not exist yet.
-        sigs.extend(spec.missing.iter().map(|_| None));
+        let sigs = spec.sigs();
+        let incomplete_after = self.incomplete_after;
         let t = self.sets.get_mut(primary).expect("tracked");
         t.retry_at = None;
         t.changing = changing;
@@ -597,140 +807,159 @@ impl Tracker {
         if t.handled.as_ref() == Some(&sigs) {
             return Vec::new();
         }
-        let mut events = Vec::new();
-        let missing: Vec<String> = spec
-            .missing
-            .iter()
-            .cloned()
-            .chain(
-                spec.members
-                    .iter()
-                    .zip(&sigs)
-                    .filter(|(_, s)| s.is_none())
-                    .map(|(m, _)| format!("{} (vanished)", m.path.display())),
-            )
-            .collect();
-        if !missing.is_empty() {
-            if now.duration_since(t.first_seen) >= self.incomplete_after && !t.reported {
-                t.reported = true;
-                let reason = format!("incomplete: missing {}", missing.join(", "));
-                tracing::warn!(scan = %primary.display(), "{reason}");
-                events.push(Event::Waiting {
-                    root_index,
-                    rel_path,
-                    reason,
-                    first_seen_ms: t.first_seen_ms,
-                });
+        if !spec.refused.is_empty() {
+            let reason = format!("refused: {}", spec.refused.join("; "));
+            return self.stuck(primary, reason, now);
+        }
+        if !spec.missing.is_empty() {
+            if now.duration_since(t.first_seen) >= incomplete_after {
+                let reason = format!("incomplete: missing {}", spec.missing.join(", "));
+                return self.report(primary, reason);
             }
-            return events;
+            return Vec::new();
         }
-        let marker_ready = root.marker_path(primary).is_some_and(|m| m.is_file());
-        if !marker_ready && now.duration_since(t.last_change) < root.quiet {
-            return events;
+        if !marker_ready && now.duration_since(t.last_change) < quiet {
+            return Vec::new();
         }
-        let sigs: Vec<StatSig> = sigs.into_iter().map(|s| s.expect("all present")).collect();
         // Already recorded with these exact files (e.g. after a restart): no need to hash.
-        let root_key = root.path.to_string_lossy().into_owned();
-        if let Some(known) = self.known.get(&(root_key, rel_path.clone())) {
-            let same = known.len() == sigs.len()
-                && spec
-                    .members
-                    .iter()
-                    .zip(&sigs)
-                    .zip(known)
-                    .all(|((m, s), k)| {
-                        rel_to(&root.path, &m.path) == k.0
-                            && s.size == k.1
-                            && s.mtime_ns == k.2
-                            && s.ino == k.3
-                    });
+        if let Some(known) = self.known.get(&(root_key, t.rel.clone())) {
+            let same = known.len() == spec.members.len()
+                && spec.members.iter().zip(known).all(|(m, k)| {
+                    m.rel == k.0 && m.sig.size == k.1 && m.sig.mtime_ns == k.2 && m.sig.ino == k.3
+                });
             if same {
-                let t = self.sets.get_mut(primary).expect("tracked");
-                t.handled = Some(sigs.into_iter().map(Some).collect());
-                if t.reported {
-                    t.reported = false;
-                    events.push(Event::NotWaiting {
+                t.handled = Some(sigs);
+                if t.reported.take().is_some() {
+                    return vec![Event::NotWaiting {
                         root_index,
-                        rel_path,
-                    });
+                        rel_path: t.rel.clone(),
+                    }];
                 }
-                return events;
+                return Vec::new();
             }
         }
-        // Hash every member, then look again: if anything moved meanwhile, wait anew.
-        let mut inputs = Vec::with_capacity(spec.members.len());
-        for (m, s) in spec.members.iter().zip(&sigs) {
-            match FileHash::of(&m.path) {
-                Ok(h) => inputs.push(InputMember {
-                    rel_path: rel_to(&root.path, &m.path),
-                    role: m.role,
-                    size: s.size,
-                    mtime_ns: s.mtime_ns,
-                    ino: s.ino,
-                    sha256: h.sha256,
-                }),
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-                    let t = self.sets.get_mut(primary).expect("tracked");
-                    t.last_change = now;
-                    return events;
-                }
-                Err(e) => {
-                    return self.unreadable(
-                        primary,
-                        &rel_path,
-                        format!("cannot read {}: {e}", m.path.display()),
-                        now,
-                    );
-                }
-            }
+        let total: u64 = spec.members.iter().map(|m| m.sig.size).sum();
+        if total > self.max_input_bytes {
+            let reason = format!(
+                "too large: the set is {total} bytes, above max_input_bytes = {}; not hashed",
+                self.max_input_bytes
+            );
+            return self.stuck(primary, reason, now);
         }
-        let after: Vec<Option<StatSig>> = spec
+        let files = spec
             .members
             .iter()
-            .map(|m| StatSig::of(&m.path).ok())
+            .map(|m| (m.real.clone(), m.sig))
             .collect();
-        let t = self.sets.get_mut(primary).expect("tracked");
-        if after.iter().zip(&sigs).any(|(a, b)| *a != Some(*b)) {
-            t.sigs = after;
-            t.last_change = Instant::now();
-            return events;
-        }
-        t.handled = Some(sigs.iter().copied().map(Some).collect());
-        if t.reported {
-            t.reported = false;
-        }
-        events.push(Event::Ready(ReadySet {
-            root_index,
-            primary: primary.to_path_buf(),
-            rel_path,
-            set_hash: set_hash(&inputs),
-            inputs,
-            sigs,
-        }));
-        let _ = now_ms;
-        events
+        t.hashing = Some(spec.members);
+        self.submit(
+            primary,
+            Work::Hash {
+                primary: primary.to_path_buf(),
+                files,
+            },
+            now,
+        )
     }
 
-    fn unreadable(
+    /// Hands content work to the content thread; the set waits for the result.
+    fn submit(&mut self, primary: &Path, work: Work, now: Instant) -> Vec<Event> {
+        if !self.content.submit(work) {
+            let reason = "internal error: the content thread is gone".to_string();
+            return self.stuck(primary, reason, now);
+        }
+        if let Some(t) = self.sets.get_mut(primary) {
+            t.busy = true;
+        }
+        Vec::new()
+    }
+
+    /// A set's hashes are in: check nothing moved meanwhile, then it is ready.
+    fn hashed(
         &mut self,
         primary: &Path,
-        rel_path: &str,
-        reason: String,
+        sha256: Result<Vec<String>, ContentError>,
         now: Instant,
     ) -> Vec<Event> {
-        let retry = self.unreadable_retry;
         let Some(t) = self.sets.get_mut(primary) else {
             return Vec::new();
         };
-        t.retry_at = Some(now + retry);
-        if t.reported {
+        t.busy = false;
+        let Some(members) = t.hashing.take() else {
+            return Vec::new();
+        };
+        let hashes = match sha256 {
+            Ok(h) => h,
+            Err(ContentError::Changed) => {
+                t.last_change = now;
+                return Vec::new();
+            }
+            Err(ContentError::Unreadable(why)) => return self.stuck(primary, why, now),
+        };
+        let root_index = t.root_index;
+        let Some(confine) = self.confine(root_index) else {
+            return Vec::new();
+        };
+        let unmoved = members
+            .iter()
+            .all(|m| matches!(confine.look(&m.path), Look::Regular { sig, .. } if sig == m.sig));
+        let t = self.sets.get_mut(primary).expect("tracked");
+        if !unmoved {
+            t.last_change = now;
             return Vec::new();
         }
-        t.reported = true;
-        tracing::warn!(scan = %primary.display(), "{reason}");
+        let inputs: Vec<InputMember> = members
+            .iter()
+            .zip(hashes)
+            .map(|(m, sha256)| InputMember {
+                rel_path: m.rel.clone(),
+                role: m.role,
+                size: m.sig.size,
+                mtime_ns: m.sig.mtime_ns,
+                ino: m.sig.ino,
+                sha256,
+            })
+            .collect();
+        let sigs: Vec<StatSig> = members.iter().map(|m| m.sig).collect();
+        if t.sigs != sigs.iter().copied().map(Some).collect::<Vec<_>>() {
+            // The set was looked at again meanwhile and differs: wait anew.
+            return Vec::new();
+        }
+        t.handled = Some(t.sigs.clone());
+        t.reported = None;
+        vec![Event::Ready(ReadySet {
+            root_index,
+            primary: primary.to_path_buf(),
+            rel_path: t.rel.clone(),
+            set_hash: set_hash(&inputs),
+            inputs,
+            sigs,
+        })]
+    }
+
+    /// Reports a set that cannot go on (unreadable, refused, too large) and leaves it
+    /// alone until `unreadable_retry` has passed.
+    fn stuck(&mut self, primary: &Path, reason: String, now: Instant) -> Vec<Event> {
+        let retry = self.unreadable_retry;
+        if let Some(t) = self.sets.get_mut(primary) {
+            t.retry_at = Some(now + retry);
+        }
+        self.report(primary, reason)
+    }
+
+    /// Records a set as waiting with `reason` (once per distinct reason).
+    fn report(&mut self, primary: &Path, reason: String) -> Vec<Event> {
+        let Some(t) = self.sets.get_mut(primary) else {
+            return Vec::new();
+        };
+        if t.reported.as_ref() == Some(&reason) {
+            return Vec::new();
+        }
+        t.reported = Some(reason.clone());
+        tracing::warn!(scan = %escape_path(primary), "{reason}");
         vec![Event::Waiting {
             root_index: t.root_index,
-            rel_path: rel_path.to_string(),
+            rel_path: t.rel.clone(),
             reason,
             first_seen_ms: t.first_seen_ms,
         }]

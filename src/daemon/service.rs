@@ -12,7 +12,7 @@
 //! then put the rest back in the queue (not counted), checkpoint the WAL and return.
 
 use super::glob::Filter;
-use super::scanset::{Event, Known, RootSpec, Tracker, job_key};
+use super::scanset::{Content, Done, Event, Known, Limits, RootSpec, Tracker, job_key};
 use super::supervise::WorkerLimits;
 use super::systemd::{Notifier, StateLock, free_bytes};
 use super::worker::{self, JobResult, JobSpec, PublishGate};
@@ -171,6 +171,7 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
             },
             quiet: secs(w.quiet_period_secs),
             marker: w.marker.clone(),
+            follow_symlinks: w.follow_symlinks,
         });
         roots.push(RootRuntime {
             identity: None,
@@ -185,12 +186,22 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
             overflow: Arc::new(AtomicBool::new(false)),
         });
     }
-    let tracker = Tracker::new(
-        specs,
-        known,
-        secs(config.incomplete_report_secs),
-        secs(config.rescan_secs),
-    );
+    // File contents are read and hashed on their own thread; results come back to the
+    // loop as messages, so no input can hold the loop (or the watchdog ping) up.
+    let (content_tx, content_rx) = mpsc::unbounded_channel::<Done>();
+    let content = Content::spawn(move |done| {
+        let _ = content_tx.send(done);
+    })
+    .map_err(|source| ServiceError::Io {
+        context: "content thread".into(),
+        source,
+    })?;
+    let limits = Limits {
+        incomplete_after: secs(config.incomplete_report_secs),
+        unreadable_retry: secs(config.rescan_secs),
+        max_input_bytes: config.max_input_bytes,
+    };
+    let tracker = Tracker::new(specs, known, limits, content);
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -221,7 +232,7 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
         unrecorded: Vec::new(),
         busy_pause: Duration::ZERO,
     };
-    let result = runtime.block_on(service.main_loop(results_rx, hints_rx));
+    let result = runtime.block_on(service.main_loop(results_rx, hints_rx, content_rx));
     drop(lock);
     result
 }
@@ -231,6 +242,7 @@ impl Service {
         mut self,
         mut results_rx: mpsc::UnboundedReceiver<(i64, JobResult)>,
         mut hints_rx: mpsc::Receiver<usize>,
+        mut content_rx: mpsc::UnboundedReceiver<Done>,
     ) -> Result<(), ServiceError> {
         use tokio::signal::unix::{SignalKind, signal};
         let sig = |k| {
@@ -301,6 +313,12 @@ impl Service {
                 }
                 Some((id, result)) = results_rx.recv() => {
                     if let Err(e) = self.job_finished(id, result) {
+                        self.survive(e).await?;
+                    }
+                }
+                Some(done) = content_rx.recv() => {
+                    let events = self.tracker.content_done(done, Instant::now());
+                    if let Err(e) = self.handle_events(events) {
                         self.survive(e).await?;
                     }
                 }
@@ -593,10 +611,12 @@ impl Service {
 
     /// The limits of one job's worker process.
     fn worker_limits(&self, job: &ClaimedJob) -> WorkerLimits {
-        let members = job
-            .inputs
-            .iter()
-            .map(|m| (m.size, m.rel_path.to_ascii_lowercase().ends_with(".gz")));
+        let members = job.inputs.iter().map(|m| {
+            (
+                m.size,
+                m.rel_path.as_bytes().to_ascii_lowercase().ends_with(b".gz"),
+            )
+        });
         WorkerLimits {
             memory_bytes: self.config.job_memory_bytes_for(members),
             cpu_secs: self.config.job_cpu_secs(),
@@ -642,7 +662,7 @@ impl Service {
                 tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
             }
             (Finish::Failed { kind, message, .. }, s) => {
-                tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {message}")
+                tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {}", crate::text::bounded(message, crate::text::MAX_SHOWN))
             }
             (Finish::Interrupted { .. }, _) => {}
         }

@@ -132,7 +132,7 @@ fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
                     "input_changed",
                     format!(
                         "{} changed after it was queued; the new version is a new job",
-                        path.display()
+                        crate::text::escape_path(&path)
                     ),
                     false,
                 ));
@@ -140,7 +140,7 @@ fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
             Err(e) => {
                 return Err(boxed_failure(
                     "input_vanished",
-                    format!("{}: {e}", path.display()),
+                    format!("{}: {e}", crate::text::escape_path(&path)),
                     false,
                 ));
             }
@@ -237,7 +237,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         "attempt": job.attempt,
         "set_hash": job.set_hash,
         "inputs": job.inputs.iter().map(|m| json!({
-            "path": Path::new(&job.root).join(&m.rel_path),
+            "path": crate::text::escape_path(&Path::new(&job.root).join(&m.rel_path)),
             "role": m.role, "bytes": m.size, "mtime_ns": m.mtime_ns, "sha256": m.sha256,
         })).collect::<Vec<_>>(),
         "recipe": { "path": spec.recipe_path, "hash": job.recipe_hash, "resolved": spec.recipe.resolved_json() },
@@ -265,7 +265,12 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         tracing::warn!("abandoned before publishing; result discarded");
         return None;
     }
-    let dest = publish::destination(Path::new(&job.output_root), &job.rel_path, &stem);
+    // The output folder is named from the escaped form: never a control character in it.
+    let dest = publish::destination(
+        Path::new(&job.output_root),
+        &job.rel_path.to_string(),
+        &stem,
+    );
     let final_dir =
         match publish::publish_dir(&scan_dir, &dest, &stem, &job.job_key, job.generation) {
             Ok(Published::New(d)) => d,
@@ -339,7 +344,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
 pub fn output_stem(input: &Path) -> String {
     let name = input
         .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
+        .map(crate::text::escape_os)
         .unwrap_or_else(|| "scan".into());
     let name = name.strip_suffix(".gz").unwrap_or(&name);
     match name.rsplit_once('.') {

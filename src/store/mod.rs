@@ -6,7 +6,10 @@
 //! daemon owns one connection; the command line opens its own, short-lived ones.
 
 pub mod query;
+pub mod relpath;
 pub mod schema;
+
+pub use relpath::RelPath;
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
 use std::path::{Path, PathBuf};
@@ -76,7 +79,7 @@ pub fn now_ms() -> i64 {
 #[derive(Debug, Clone, PartialEq)]
 pub struct InputMember {
     /// Relative to the job's root.
-    pub rel_path: String,
+    pub rel_path: RelPath,
     /// "mesh", "mtl" or "texture".
     pub role: &'static str,
     pub size: u64,
@@ -91,7 +94,7 @@ pub struct NewJob {
     pub job_key: String,
     pub set_hash: String,
     pub root: String,
-    pub rel_path: String,
+    pub rel_path: RelPath,
     pub output_root: String,
     pub recipe_path: String,
     pub recipe_hash: String,
@@ -119,7 +122,7 @@ pub struct ClaimedJob {
     pub job_key: String,
     pub set_hash: String,
     pub root: String,
-    pub rel_path: String,
+    pub rel_path: RelPath,
     pub output_root: String,
     pub recipe_path: String,
     pub recipe_hash: String,
@@ -705,7 +708,7 @@ impl Store {
     pub fn set_waiting(
         &mut self,
         root: &str,
-        rel_path: &str,
+        rel_path: &RelPath,
         reason: &str,
         first_seen: i64,
     ) -> Result<()> {
@@ -722,7 +725,7 @@ impl Store {
     }
 
     /// Forgets a waiting scan (it became a job, or it is gone).
-    pub fn clear_waiting(&mut self, root: &str, rel_path: &str) -> Result<()> {
+    pub fn clear_waiting(&mut self, root: &str, rel_path: &RelPath) -> Result<()> {
         let path = self.path.clone();
         let tx = self.immediate()?;
         tx.execute(
@@ -832,9 +835,9 @@ fn close_attempt(
 mod tests;
 
 /// A member's recorded signature: (rel_path, size, mtime_ns, ino).
-pub type MemberSig = (String, u64, i64, u64);
+pub type MemberSig = (RelPath, u64, i64, u64);
 /// A job's set as recorded: (root, mesh rel_path, members).
-pub type KnownSet = (String, String, Vec<MemberSig>);
+pub type KnownSet = (String, RelPath, Vec<MemberSig>);
 
 impl Store {
     /// Every job's input signatures, keyed by (root, mesh rel_path), newest job last, so
@@ -856,9 +859,9 @@ impl Store {
                 Ok((
                     r.get::<_, i64>(0)?,
                     r.get::<_, String>(1)?,
-                    r.get::<_, String>(2)?,
+                    r.get::<_, RelPath>(2)?,
                     (
-                        r.get::<_, String>(3)?,
+                        r.get::<_, RelPath>(3)?,
                         r.get::<_, i64>(4)? as u64,
                         r.get::<_, i64>(5)?,
                         r.get::<_, i64>(6)? as u64,

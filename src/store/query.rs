@@ -1,7 +1,8 @@
 //! Audit queries: `history` (a filtered list of jobs) and `show` (everything recorded about
 //! one job). Both run as short read transactions, so they never hold the WAL back.
 
-use super::{Result, Store, StoreError};
+use super::{RelPath, Result, Store, StoreError};
+use crate::text::{MAX_SHOWN, bounded, escape_str};
 use rusqlite::{OptionalExtension, params};
 use serde::Serialize;
 use serde_json::{Value, json};
@@ -121,13 +122,13 @@ impl Store {
             let mapped = stmt
                 .query_map(params![since, glob, limit], |r| {
                     let root: String = r.get(0)?;
-                    let rel: String = r.get(1)?;
+                    let rel: RelPath = r.get(1)?;
                     Ok(HistoryRow {
                         id: None,
                         state: "waiting".into(),
                         created: iso_time(r.get(3)?),
                         finished: None,
-                        input: format!("{root}/{rel}"),
+                        input: input_display(&root, &rel),
                         recipe: String::new(),
                         attempts: 0,
                         in_faces: None,
@@ -135,7 +136,7 @@ impl Store {
                         process_ms: None,
                         output: None,
                         error_kind: Some("waiting".into()),
-                        error: Some(r.get(2)?),
+                        error: Some(bounded(&r.get::<_, String>(2)?, MAX_SHOWN)),
                     })
                 })
                 .map_err(err)?;
@@ -147,8 +148,8 @@ impl Store {
         let mut stmt = self
             .conn
             .prepare(
-                "SELECT id, state, created_at, finished_at, root || '/' || rel_path, recipe_path, attempts,
-                        in_faces, out_faces, process_ms, output_dir, error_kind, error
+                "SELECT id, state, created_at, finished_at, root, recipe_path, attempts,
+                        in_faces, out_faces, process_ms, output_dir, error_kind, error, rel_path
                  FROM job
                  WHERE created_at >= ?1 AND (?2 IS NULL OR state = ?2) AND (root || '/' || rel_path) GLOB ?3
                  ORDER BY id LIMIT ?4",
@@ -161,15 +162,17 @@ impl Store {
                     state: r.get(1)?,
                     created: iso_time(r.get(2)?),
                     finished: r.get::<_, Option<i64>>(3)?.map(iso_time),
-                    input: r.get(4)?,
+                    input: input_display(&r.get::<_, String>(4)?, &r.get::<_, RelPath>(13)?),
                     recipe: r.get(5)?,
                     attempts: r.get(6)?,
                     in_faces: r.get(7)?,
                     out_faces: r.get(8)?,
                     process_ms: r.get(9)?,
-                    output: r.get(10)?,
+                    output: r.get::<_, Option<String>>(10)?.map(|o| escape_str(&o)),
                     error_kind: r.get(11)?,
-                    error: r.get(12)?,
+                    error: r
+                        .get::<_, Option<String>>(12)?
+                        .map(|e| bounded(&e, MAX_SHOWN)),
                 })
             })
             .map_err(err)?;
@@ -271,11 +274,46 @@ impl Store {
             attempt["steps"] = Value::Array(steps);
         }
         let mut job = job;
-        job["inputs"] = Value::Array(inputs);
-        job["outputs"] = Value::Array(outputs);
-        job["attempts_log"] = Value::Array(attempts);
-        job["sightings"] = Value::Array(sightings);
+        escape_row(&mut job);
+        let escaped = |mut rows: Vec<Value>| {
+            rows.iter_mut().for_each(escape_row);
+            Value::Array(rows)
+        };
+        let (inputs, outputs, attempts, sightings) = (
+            escaped(inputs),
+            escaped(outputs),
+            escaped(attempts),
+            escaped(sightings),
+        );
+        job["inputs"] = inputs;
+        job["outputs"] = outputs;
+        job["attempts_log"] = attempts;
+        job["sightings"] = sightings;
         Ok(job)
+    }
+}
+
+/// `root/rel_path` as shown: escaped, any bytes.
+fn input_display(root: &str, rel: &RelPath) -> String {
+    format!("{}/{rel}", escape_str(root))
+}
+
+/// Makes the input-derived fields of a `show` row printable: `rel_path` decoded from its
+/// stored form and escaped, paths escaped, error texts escaped and bounded.
+fn escape_row(row: &mut Value) {
+    let Value::Object(map) = row else { return };
+    for (name, value) in map.iter_mut() {
+        let Value::String(text) = value else { continue };
+        *text = match name.as_str() {
+            "rel_path" => RelPath::from_stored(text)
+                .map(|p| p.to_string())
+                .unwrap_or_else(|| escape_str(text)),
+            "error" => bounded(text, MAX_SHOWN),
+            "root" | "output_root" | "output_dir" | "preview" | "path" | "recipe_path" => {
+                escape_str(text)
+            }
+            _ => continue,
+        };
     }
 }
 

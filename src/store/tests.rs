@@ -265,7 +265,8 @@ fn vanished_input_job_is_revived_when_input_returns() {
 #[test]
 fn waiting_rows_show_in_history_and_backup_works() {
     let (d, mut s) = open();
-    s.set_waiting("/in", "x.obj", "missing x.mtl", 1).unwrap();
+    s.set_waiting("/in", &"x.obj".into(), "missing x.mtl", 1)
+        .unwrap();
     let f = HistoryFilter {
         status: Some("waiting".into()),
         ..Default::default()
@@ -273,7 +274,7 @@ fn waiting_rows_show_in_history_and_backup_works() {
     let rows = s.history(&f).unwrap();
     assert_eq!(rows.len(), 1);
     assert_eq!(rows[0].error.as_deref(), Some("missing x.mtl"));
-    s.clear_waiting("/in", "x.obj").unwrap();
+    s.clear_waiting("/in", &"x.obj".into()).unwrap();
     assert!(s.history(&f).unwrap().is_empty());
     let dest = d.path().join("backup.sqlite");
     s.backup(&dest).unwrap();
