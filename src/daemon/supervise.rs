@@ -464,10 +464,7 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
         .iter()
         .rev()
         .find(|l| !noise(l))
-        .map(|l| {
-            let short: String = l.chars().take(300).collect();
-            format!("; its last words: \"{}\"", short.escape_debug())
-        })
+        .map(|l| format!("; its last words: \"{}\"", crate::text::bounded(l, 300)))
         .unwrap_or_default();
     match ended.killed {
         Some(KillReason::Abandoned) => return WorkerOutcome::Abandoned,

@@ -207,6 +207,22 @@ impl Owner {
     }
 }
 
+/// Longest failure message recorded: reasons are one line; an input that makes one longer
+/// (a file name, a worker's last words) must not fill the database.
+const MAX_ERROR_BYTES: usize = 4096;
+
+/// `text` cut to at most `max` bytes at a character boundary, marked `…` when cut.
+fn cut(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
+    if text.len() <= max {
+        return text.into();
+    }
+    let mut end = max;
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}…", &text[..end]).into()
+}
+
 /// Exponential backoff after `attempts` counted failures: base·2^(attempts-1), capped.
 pub fn backoff_ms(attempts: u32, base_secs: f64, max_secs: f64) -> i64 {
     let exp = attempts.saturating_sub(1).min(30) as i32;
@@ -588,6 +604,7 @@ impl Store {
                     ("failed", 1, "retry", FinalState::RetryLater)
                 };
                 let run_after = now + backoff_ms(job.attempt, retry.0, retry.1);
+                let message = cut(message, MAX_ERROR_BYTES);
                 tx.execute(
                     "UPDATE job SET state=?2, retryable=?3, run_after=?4, finished_at=?5, updated_at=?5,
                         lease_owner=NULL, error_kind=?6, error=?7 WHERE id=?1",
@@ -600,7 +617,7 @@ impl Store {
                     now,
                     outcome,
                     Some(kind),
-                    Some(message),
+                    Some(&message),
                     wall_ms,
                 )
                 .map_err(sq)?;

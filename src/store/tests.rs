@@ -321,3 +321,29 @@ fn backoff_doubles_and_caps() {
     assert_eq!(backoff_ms(3, 2.0, 100.0), 8000);
     assert_eq!(backoff_ms(20, 2.0, 100.0), 100_000);
 }
+
+#[test]
+fn a_huge_failure_message_is_cut_when_recorded() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "a.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    let f = Finish::Failed {
+        kind: "input".into(),
+        message: "é".repeat(100_000),
+        transient: false,
+    };
+    s.finish(&c, &f, (1.0, 1.0), 1.0).unwrap();
+    let shown = s.show(c.id).unwrap();
+    let stored: String = s
+        .connection()
+        .query_row("SELECT error FROM job WHERE id=?1", [c.id], |r| r.get(0))
+        .unwrap();
+    assert!(stored.len() <= MAX_ERROR_BYTES + "…".len(), "{}", stored.len());
+    assert!(stored.ends_with('…'));
+    let logged: String = s
+        .connection()
+        .query_row("SELECT error FROM attempt WHERE job_id=?1", [c.id], |r| r.get(0))
+        .unwrap();
+    assert_eq!(logged, stored);
+    assert_eq!(shown["state"], "failed");
+}
