@@ -21,9 +21,11 @@ use super::header::{self, Element, Format, Header, PropertyKind, Scalar};
 use super::source::{Ascii, Binary, Fault, Source, Step};
 use crate::mesh::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 use crate::mesh::error::{Location, MeshError, Result};
+use crate::mesh::limits::Limit;
 use crate::mesh::model::{Index, Material, Mesh, Texture};
+use crate::mesh::texture;
 use glam::{DVec2, DVec3};
-use std::path::{Component, Path};
+use std::path::Path;
 
 /// Marks, in `Material::other_statements`, a texture the PLY header names but that is not on
 /// disk (`# missing texture: NAME`). It keeps the name for the PLY writer (which writes the
@@ -670,63 +672,69 @@ fn apply_multi_texture(path: &Path, raw: &mut Raw) -> Result<()> {
     Ok(())
 }
 
-/// Materials from `comment TextureFile` lines.
+/// Materials from `comment TextureFile` lines, and how many images were decoded.
 ///
 /// PLY texture files are optional: MeshLab and OpenMVS name them in a comment, and PLYs are
 /// routinely passed around without them (see data/ply_texcoords). So a texture that is not on
 /// disk does not fail the load, even with `check_textures`: the material is kept with
 /// `diffuse_texture: None`, its name is kept in `other_statements` (see
-/// [`MISSING_TEXTURE_PREFIX`]) and a warning is logged. A name that leaves the scan's folder is
-/// treated the same way (never read). A texture that is present but does not decode is an error
-/// with `check_textures`, as for OBJ: the user clearly meant it to be used.
+/// [`MISSING_TEXTURE_PREFIX`]) and a warning is logged. A name that resolves outside the scan's
+/// folder (`..`, an absolute path, a symlink), names a FIFO or device, or is above the size
+/// limit is refused with an error, as for OBJ: it is never read. A texture that is present but
+/// does not decode is an error with `check_textures`, as for OBJ: the user clearly meant it to
+/// be used.
 fn texture_materials(
     path: &Path,
     names: &[String],
     options: &LoadOptions,
-) -> Result<Vec<Material>> {
-    let dir = path.parent().unwrap_or(Path::new(""));
-    names
-        .iter()
-        .enumerate()
-        .map(|(i, name)| {
-            let mut material = Material {
-                name: format!("texture{i}"),
-                ..Material::default()
-            };
-            let escapes = Path::new(name)
-                .components()
-                .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir));
-            let file = dir.join(name);
-            if escapes || !file.is_file() {
-                let why = if escapes { "leaves the scan's folder; not read" } else { "is missing" };
-                tracing::warn!(path = %path.display(), texture = %name, "PLY texture {why}; material {} has no texture", material.name);
+) -> Result<(Vec<Material>, usize)> {
+    let scan_dir = texture::scan_folder(path);
+    let base_dir = texture::folder_of(path);
+    let cap = (options.limits.max_file_bytes, Limit::FileBytes);
+    let mut materials = Vec::with_capacity(names.len());
+    for (i, name) in names.iter().enumerate() {
+        let mut material = Material {
+            name: format!("texture{i}"),
+            ..Material::default()
+        };
+        match texture::resolve_in_scan(&scan_dir, &base_dir, name, path, cap) {
+            Ok(resolved) => {
+                material.diffuse_texture = Some(Texture {
+                    name: name.clone(),
+                    path: resolved.path,
+                    size: None,
+                });
+            }
+            Err(MeshError::Texture { .. }) => {
+                tracing::warn!(path = %path.display(), texture = %name, "PLY texture is missing; material {} has no texture", material.name);
                 material
                     .other_statements
                     .push(format!("{MISSING_TEXTURE_PREFIX}{name}"));
-                return Ok(material);
             }
-            let size = if options.check_textures {
-                let image = image::ImageReader::open(&file)
-                    .and_then(|r| r.with_guessed_format())
-                    .map_err(|e| e.to_string())
-                    .and_then(|r| r.decode().map_err(|e| e.to_string()))
-                    .map_err(|message| MeshError::Texture {
-                        path: path.to_path_buf(),
-                        texture: name.clone(),
-                        message,
-                    })?;
-                Some((image.width(), image.height()))
-            } else {
-                None
-            };
-            material.diffuse_texture = Some(Texture {
-                name: name.clone(),
-                path: file,
-                size,
-            });
-            Ok(material)
+            Err(e) => return Err(e),
+        }
+        materials.push(material);
+    }
+    if !options.check_textures {
+        return Ok((materials, 0));
+    }
+    let images: Vec<texture::ImageRef> = materials
+        .iter()
+        .filter_map(|m| m.diffuse_texture.as_ref())
+        .map(|t| texture::ImageRef {
+            path: &t.path,
+            name: &t.name,
+            referrer: path,
         })
-        .collect()
+        .collect();
+    let checked = texture::check_images(&images, &options.limits)?;
+    for t in materials
+        .iter_mut()
+        .filter_map(|m| m.diffuse_texture.as_mut())
+    {
+        t.size = checked.sizes.get(&t.path).copied();
+    }
+    Ok((materials, checked.decoded))
 }
 
 fn assemble(
@@ -738,7 +746,8 @@ fn assemble(
     let faces = raw.face_start.len() - 1;
     apply_multi_texture(path, &mut raw)?;
 
-    let mut materials = texture_materials(path, &header.texture_files(), options)?;
+    let (mut materials, decoded_textures) =
+        texture_materials(path, &header.texture_files(), options)?;
     let max_texture = raw.face_textures.iter().copied().max();
     let with_materials = !materials.is_empty() || max_texture.is_some_and(|m| m > 0);
     if let Some(max) = max_texture.filter(|_| with_materials) {
@@ -761,6 +770,7 @@ fn assemble(
     b.report.file_texcoords = vertex_uv_count + raw.corner_uv_values.len();
     b.report.strip_triangles = raw.strip_triangles.len();
     b.report.skipped = std::mem::take(&mut raw.skipped);
+    b.report.decoded_textures = decoded_textures;
 
     let has_normals = !raw.normals.is_empty();
     let bad_normals = raw.normals.iter().filter(|n| !n.is_finite()).count();
