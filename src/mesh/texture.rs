@@ -107,20 +107,22 @@ pub fn resolve_in_scan(
     Ok(ResolvedFile { path: real })
 }
 
-/// Lexical normalisation: drops `.`, applies `..`. `None` if `..` climbs above the start
-/// (the root of an absolute path, the beginning of a relative one).
+/// Lexical normalisation: drops `.`, applies `..` (which stays at the root of an absolute
+/// path, as the file system does). `None` if `..` climbs above the beginning of a relative
+/// path.
 fn normalise(path: &Path) -> Option<PathBuf> {
     let mut out = PathBuf::new();
     for c in path.components() {
         match c {
             Component::Prefix(_) | Component::RootDir => out.push(c.as_os_str()),
             Component::CurDir => {}
-            Component::ParentDir => {
-                if !matches!(out.components().next_back(), Some(Component::Normal(_))) || !out.pop()
-                {
-                    return None;
+            Component::ParentDir => match out.components().next_back() {
+                Some(Component::Normal(_)) => {
+                    out.pop();
                 }
-            }
+                Some(Component::RootDir) => {}
+                _ => return None,
+            },
             Component::Normal(n) => out.push(n),
         }
     }
@@ -212,11 +214,15 @@ fn read_header(image: &ImageRef, limits: &InputLimits) -> Result<Header> {
     Ok((bytes, size))
 }
 
-/// An image's size from its header, without decoding it.
+/// An image's size from its header, without decoding it. The decoder's own allocation
+/// limit is lifted for this header read, so that a huge declared size is reported as such
+/// and judged against the pixel budget (the decode itself is bounded in [`decode_bounded`]).
 pub fn image_size(bytes: &[u8]) -> std::result::Result<(u32, u32), String> {
-    image::ImageReader::new(std::io::Cursor::new(bytes))
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
-        .map_err(|e| e.to_string())?
+        .map_err(|e| e.to_string())?;
+    reader.no_limits();
+    reader
         .into_dimensions()
         .map_err(|e| format!("not a readable image: {e}"))
 }

@@ -194,11 +194,26 @@ fn for_each<S: Source>(
     Ok(())
 }
 
-/// Reserve for `count` elements, but never more than the remaining bytes could hold: a lying
-/// header must not cause a huge allocation.
-fn capacity<S: Source>(src: &S, element: &Element) -> usize {
-    let min = element.min_binary_size().max(2);
-    (element.count.min((src.remaining() / min) as u64)) as usize
+/// How many elements to reserve for: the header's count, but never more than the remaining
+/// bytes can hold, so a lying header cannot cause a huge allocation. An element takes at
+/// least the smallest encoding of each of its values ([`Source::min_value_bytes`]), and a list
+/// named in `min_lists` at least that many items (a face has 3 vertex indices).
+fn capacity<S: Source>(src: &S, element: &Element, min_lists: &[(&str, usize)]) -> usize {
+    let min: usize = element
+        .properties
+        .iter()
+        .map(|p| match p.kind {
+            PropertyKind::Scalar(ty) => src.min_value_bytes(ty),
+            PropertyKind::List { count, item } => {
+                let items = min_lists
+                    .iter()
+                    .find(|(name, _)| *name == p.name)
+                    .map_or(0, |(_, n)| *n);
+                src.min_value_bytes(count) + items * src.min_value_bytes(item)
+            }
+        })
+        .sum();
+    element.count.min((src.remaining() / min.max(1)) as u64) as usize
 }
 
 fn index_value(value: f64, count: usize, kind: &'static str) -> Step<Index> {
@@ -304,7 +319,7 @@ fn read_vertices<S: Source>(
     }
     let has_alpha = slots.contains(&ALPHA);
 
-    let cap = capacity(src, element);
+    let cap = capacity(src, element, &[]);
     raw.positions.reserve(cap);
     if normals {
         raw.normals.reserve(cap);
@@ -406,13 +421,13 @@ fn read_faces<S: Source>(
     let has_uvs = roles.contains(&Role::Texcoords);
     let has_texnumber = roles.contains(&Role::TexNumber);
 
-    let cap = capacity(src, element);
+    // Every face holds at least 3 indices; texture coordinates may be empty lists, so their
+    // arrays grow as they are read.
+    let cap = capacity(src, element, &[(index_name, 3)]);
     raw.face_start.reserve(cap);
     raw.face_vertices.reserve(cap * 3);
     if has_uvs {
         raw.corner_uvs.resize(raw.face_vertices.len(), NONE);
-        raw.corner_uvs.reserve(cap * 3);
-        raw.corner_uv_values.reserve(cap * 3);
     }
     if has_texnumber {
         raw.face_textures.reserve(cap);
@@ -560,7 +575,7 @@ fn read_multi_vertices<S: Source>(
             raw.skipped.push(format!("multi_texture_vertex.{}", p.name));
         }
     }
-    raw.multi_uvs.reserve(capacity(src, element));
+    raw.multi_uvs.reserve(capacity(src, element, &[]));
     for_each(path, element, src, |src, _| {
         let mut uv = DVec2::ZERO;
         for (k, p) in element.properties.iter().enumerate() {
@@ -827,4 +842,33 @@ fn assemble(
     b.texcoords.extend_from_slice(&raw.corner_uv_values);
     b.materials = materials;
     b.finish(options)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reservations_are_bounded_by_the_bytes_that_remain() {
+        let text = "ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\n\
+                    property uchar x\nproperty uchar y\nproperty uchar z\n\
+                    element face 4294967295\nproperty list uchar uchar vertex_indices\nend_header\n";
+        let mut bytes = text.as_bytes().to_vec();
+        bytes.extend([0u8; 1200]);
+        let header = header::parse(Path::new("x.ply"), &bytes).unwrap();
+        let body = &bytes[header.body_start..];
+        let (vertex, face) = (
+            header.element("vertex").unwrap(),
+            header.element("face").unwrap(),
+        );
+        let faces = [("vertex_indices", 3)];
+        // Binary: 3 bytes a vertex; a face at least its count byte and 3 index bytes.
+        let binary = Binary::new(body, false);
+        assert_eq!(capacity(&binary, vertex, &[]), 400);
+        assert_eq!(capacity(&binary, face, &faces), 300);
+        // ASCII: at least a digit and a separator per value.
+        let ascii = Ascii::new(body, header.lines);
+        assert_eq!(capacity(&ascii, vertex, &[]), 200);
+        assert_eq!(capacity(&ascii, face, &faces), 150);
+    }
 }
