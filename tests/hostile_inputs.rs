@@ -320,3 +320,22 @@ fn lowered_file_size_limit_names_its_key() {
         "{e}"
     );
 }
+
+#[test]
+fn the_daemon_configuration_has_a_validated_limits_table() {
+    use scanmill::config::DaemonConfig;
+    let parse = |text: &str| DaemonConfig::from_toml(text, Path::new("c.toml"));
+    let config = parse("[limits]\nmax_texture_pixels = 1000000\n").unwrap();
+    assert_eq!(config.limits.max_texture_pixels, 1_000_000);
+    assert_eq!(
+        config.limits.max_gzip_ratio,
+        InputLimits::default().max_gzip_ratio
+    );
+    assert!(parse("[limits]\nmax_pixels = 1\n").is_err());
+    let bad = parse("[limits]\nmax_gzip_ratio = 0\n").unwrap();
+    let problems = bad.validate().join("\n");
+    assert!(
+        problems.contains("limits.max_gzip_ratio must be 2..=1048576, not 0"),
+        "{problems}"
+    );
+}
