@@ -19,7 +19,7 @@ use super::wedges::WedgeInterner;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// One face corner as a file states it: indices into the position, texture-coordinate and
@@ -61,7 +61,7 @@ impl Default for LoadOptions {
 }
 
 /// What loading found and repaired. Shown by `inspect` and kept in reports.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct LoadReport {
     pub format: String,
     /// Counts as stored in the file.
