@@ -237,13 +237,26 @@ fn present_texture_is_checked() {
         mesh.materials[0].diffuse_texture.as_ref().unwrap().size,
         None
     );
-    // Names leaving the folder are never read.
-    let (mesh, _) = read(
-        &path,
-        text("../tex.png").as_bytes(),
-        &LoadOptions::default(),
-    )
-    .unwrap();
+    // Names leaving the folder are never read: `..`, an absolute path, a symlink.
+    let outside = tempfile::tempdir().unwrap();
+    let secret = outside.path().join("secret.png");
+    image.save(&secret).unwrap();
+    std::os::unix::fs::symlink(&secret, dir.path().join("link.png")).unwrap();
+    for name in [
+        "../tex.png".to_string(),
+        "..\\tex.png".to_string(),
+        secret.display().to_string(),
+        "link.png".to_string(),
+    ] {
+        let e = read(&path, text(&name).as_bytes(), &LoadOptions::default()).unwrap_err();
+        assert!(matches!(e, MeshError::PathEscapes { .. }), "{name}: {e}");
+        assert!(
+            e.to_string().contains("resolves outside the scan's folder"),
+            "{e}"
+        );
+    }
+    // A missing texture is still only a warning.
+    let (mesh, _) = read(&path, text("gone.png").as_bytes(), &LoadOptions::default()).unwrap();
     assert!(mesh.materials[0].diffuse_texture.is_none());
 }
 
@@ -567,4 +580,36 @@ fn writer_copies_present_textures() {
     let beside = src.path().join("again.ply");
     let written = write(&mesh, &beside, PlyEncoding::Ascii).unwrap();
     assert_eq!(written, vec![beside, src.path().join("skin.png")]);
+}
+
+#[test]
+fn writer_keeps_copied_textures_apart_from_reserved_names() {
+    let src = tempfile::tempdir().unwrap();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([9, 9, 9]))
+        .save(src.path().join("out.preview.png"))
+        .unwrap();
+    let text = SQUARE_ASCII.replace(
+        "comment a unit",
+        "comment TextureFile out.preview.png\ncomment a unit",
+    );
+    let (mesh, _) = read(
+        &src.path().join("in.ply"),
+        text.as_bytes(),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let path = out.path().join("out.ply");
+    let reserved = ["out.preview.png".to_string()];
+    let written = write_reserving(&mesh, &path, PlyEncoding::Ascii, &reserved).unwrap();
+    assert_eq!(
+        written,
+        vec![path.clone(), out.path().join("out.preview_2.png")]
+    );
+    assert!(!out.path().join("out.preview.png").exists());
+    let header = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        header.contains("comment TextureFile out.preview_2.png\n"),
+        "{header}"
+    );
 }
