@@ -234,3 +234,25 @@ fn a_database_locked_longer_than_the_busy_timeout_is_waited_out() {
     );
     assert!(lab.logs().contains("write lock"), "{}", lab.logs());
 }
+
+#[test]
+fn the_daemons_input_limits_reach_the_worker() {
+    let lab = Lab::new(0.3, "[limits]\nmax_file_bytes = 2000\n");
+    let _d = KillOnDrop(lab.start(&[]));
+    std::fs::write(lab.inbox().join("big.ply"), bunny_variant("big")).unwrap();
+    assert!(
+        wait_for(60, || lab.count_state("failed") == 1),
+        "{:?}\n{}",
+        lab.jobs(),
+        lab.logs()
+    );
+    let job = &lab.jobs()[0];
+    assert_eq!(job["error_kind"], "input", "{job}");
+    assert!(
+        job["error"]
+            .as_str()
+            .unwrap()
+            .contains("limits.max_file_bytes = 2000"),
+        "{job}"
+    );
+}

@@ -90,6 +90,9 @@ pub enum ServiceCommand {
         recipe: PathBuf,
         #[arg(long)]
         recipe_hash: String,
+        /// The daemon's `[limits]`, as JSON.
+        #[arg(long)]
+        limits: String,
         #[arg(long)]
         out: PathBuf,
     },
@@ -129,9 +132,17 @@ impl ServiceCommand {
                 input,
                 recipe,
                 recipe_hash,
+                limits,
                 out,
             } => {
                 super::systemd::init_logging();
+                let limits = match serde_json::from_str(limits) {
+                    Ok(l) => l,
+                    Err(e) => {
+                        let _ = writeln!(err, "scanmill: error: --limits: {e}");
+                        return exit::USAGE;
+                    }
+                };
                 if *protocol != super::protocol::VERSION {
                     let _ = writeln!(
                         err,
@@ -145,6 +156,7 @@ impl ServiceCommand {
                     input: input.clone(),
                     recipe: recipe.clone(),
                     recipe_hash: recipe_hash.clone(),
+                    limits,
                     out: out.clone(),
                 })
             }

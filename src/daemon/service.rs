@@ -575,6 +575,7 @@ impl Service {
                 owner: self.owner.clone(),
                 max_input_bytes: self.config.max_input_bytes,
                 limits: self.worker_limits(&job),
+                input_limits: self.config.limits.clone(),
                 gate: gate.clone(),
             };
             let tx = self.results_tx.clone();

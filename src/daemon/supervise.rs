@@ -16,6 +16,7 @@
 
 use super::protocol::{self, Event, Line};
 use super::worker::PublishGate;
+use crate::mesh::InputLimits;
 use crate::report::Report;
 use std::collections::VecDeque;
 use std::ffi::OsString;
@@ -37,6 +38,8 @@ pub struct WorkerRequest {
     /// The staging folder the worker writes into.
     pub out: PathBuf,
     pub limits: WorkerLimits,
+    /// The input limits the worker loads the scan under (the daemon's `[limits]`).
+    pub input_limits: InputLimits,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -137,6 +140,8 @@ fn command(request: &WorkerRequest) -> Command {
         .arg(request.job_id.to_string())
         .arg("--recipe-hash")
         .arg(&request.recipe_hash)
+        .arg("--limits")
+        .arg(serde_json::to_string(&request.input_limits).expect("limits serialise"))
         .args([OsString::from("--input"), request.input.clone().into()])
         .args([OsString::from("--recipe"), request.recipe.clone().into()])
         .args([OsString::from("--out"), request.out.clone().into()])

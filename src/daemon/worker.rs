@@ -58,6 +58,7 @@ pub struct JobSpec {
     pub owner: Owner,
     pub max_input_bytes: u64,
     pub limits: WorkerLimits,
+    pub input_limits: crate::mesh::InputLimits,
     pub gate: Arc<PublishGate>,
 }
 
@@ -193,6 +194,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         recipe_hash: job.recipe_hash.clone(),
         out: scan_dir.clone(),
         limits: spec.limits,
+        input_limits: spec.input_limits.clone(),
     };
     let mut on_stage = |index: usize, total: usize, name: &str| {
         tracing::debug!(job_id = job.id, index, total, stage = name, "stage");

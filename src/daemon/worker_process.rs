@@ -8,7 +8,8 @@
 
 use super::protocol::{Event, Line};
 use crate::config::load_recipe;
-use crate::process::{ProcessError, process_scan};
+use crate::mesh::InputLimits;
+use crate::process::{ProcessError, ProcessOptions, process_scan_with_options};
 use crate::recipe::runner::Progress;
 use std::io::Write;
 use std::panic::AssertUnwindSafe;
@@ -22,6 +23,8 @@ pub struct WorkerArgs {
     pub input: PathBuf,
     pub recipe: PathBuf,
     pub recipe_hash: String,
+    /// The input limits of the daemon's `[limits]`.
+    pub limits: InputLimits,
     pub out: PathBuf,
 }
 
@@ -177,8 +180,13 @@ fn run_job(args: &WorkerArgs, start: std::time::Instant) -> Event {
     let progress = PipeProgress {
         delay: test_hooks::stage_delay(),
     };
-    match process_scan(
+    let options = ProcessOptions {
+        texture: None,
+        limits: args.limits.clone(),
+    };
+    match process_scan_with_options(
         &args.input,
+        &options,
         &recipe,
         Some(&args.recipe),
         &args.out,
