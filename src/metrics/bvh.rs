@@ -15,10 +15,42 @@
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Triangles per leaf. Four keeps the tree small (a quarter of the nodes of one per leaf)
 /// while a leaf's triangles are still cheap to test one after another.
 pub const LEAF_SIZE: usize = 4;
+
+/// Nodes a search may visit per level of the tree ([`TriangleBvh::budget`]). A search
+/// for a point near a scan's surface visits a few nodes per level; this is far above what
+/// any query of the metrics, the preview, `seam_fix` or texture follow needs on the scans
+/// of ../shared/data (their largest is counted in tests/quadratic_corners.rs), and keeps
+/// the worst case, overlapping triangles, at O(log n) per query.
+pub const BUDGET_PER_LEVEL: u32 = 32;
+
+/// Deepest tree the searches' fixed stack can walk: median splits halve the triangles at
+/// every level, so a tree over `u32` triangle indices is at most 31 levels deep.
+const MAX_DEPTH: usize = 64;
+
+/// What one search cost.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct QueryCost {
+    /// Nodes visited, inner and leaf.
+    pub nodes: u32,
+    /// Triangles whose closest point was computed.
+    pub triangles: u32,
+}
+
+/// The outcome of [`TriangleBvh::search`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Search {
+    /// The nearest triangle found (`None` only for an empty index).
+    pub hit: Option<TriangleHit>,
+    /// Whether every node that could hold something nearer was visited, so that `hit` is
+    /// the nearest; `false` when the search stopped at its budget.
+    pub complete: bool,
+    pub cost: QueryCost,
+}
 
 /// A node: a box, and either two children (`count == 0`, at `first` and `first + 1`) or a
 /// run of `count` triangles starting at `first` in [`TriangleBvh::order`].
@@ -57,6 +89,10 @@ pub struct TriangleBvh<'a> {
     order: Vec<u32>,
     /// The triangles' vertex indices in leaf order (one indirection less per test).
     corners: Vec<[u32; 3]>,
+    /// Nodes one search may visit.
+    budget: u32,
+    /// Searches that stopped at the budget.
+    cut_short: AtomicU64,
 }
 
 /// The largest `f32` not above `x`, and the smallest not below it.
@@ -91,11 +127,14 @@ impl<'a> TriangleBvh<'a> {
             .par_iter()
             .map(|&t| mesh.triangle_vertices(t as usize))
             .collect();
+        let levels = depth(order.len()) + 1;
         TriangleBvh {
             mesh,
             nodes,
             order,
             corners,
+            budget: BUDGET_PER_LEVEL * levels,
+            cut_short: AtomicU64::new(0),
         }
     }
 
@@ -113,20 +152,57 @@ impl<'a> TriangleBvh<'a> {
     /// The closest point of the indexed surface to `p`. `start`, if given, is a candidate
     /// already known (e.g. from a nearby triangle): it bounds the search from the start, which
     /// prunes most of the tree. `None` only for an empty index.
+    ///
+    /// A search visits at most [`TriangleBvh::budget`] nodes; one that stops there returns
+    /// the nearest triangle it has met, which is then an upper bound on the distance rather
+    /// than proven nearest ([`TriangleBvh::search`] says which; the index counts them and
+    /// logs their number when it is dropped).
     pub fn closest(&self, p: DVec3, start: Option<TriangleHit>) -> Option<TriangleHit> {
+        self.search(p, start).hit
+    }
+
+    /// [`TriangleBvh::closest`], with whether the answer is proven and what it cost.
+    ///
+    /// The traversal is depth first, nearer child first, pruned by box distance against the
+    /// best distance so far. That bound fails where boxes cannot separate the triangles:
+    /// in a soup of large triangles crossing each other, or a fan of thin triangles around
+    /// one vertex, nearly every box contains a query point on the surface, so an exact
+    /// search would test nearly every triangle, and the metrics' hundreds of thousands of
+    /// queries would cost time quadratic in the mesh. No search visits more than the budget
+    /// of nodes, O(log n); on scans the searches end far below it (see [`BUDGET_PER_LEVEL`]).
+    /// An early stop for a point on a triangle to rounding would spare most of that work on
+    /// an unchanged soup, but it changes which of two triangles within rounding of a shared
+    /// vertex answers (a texture seam), so outputs of scans would change: not done.
+    pub fn search(&self, p: DVec3, start: Option<TriangleHit>) -> Search {
+        let mut cost = QueryCost::default();
         if self.order.is_empty() {
-            return None;
+            return Search {
+                hit: None,
+                complete: true,
+                cost,
+            };
         }
         let mut best = start;
         let mut best_d2 = best.map_or(f64::INFINITY, |h| h.distance_squared);
-        // Depth is about log2(n / LEAF_SIZE) for a median split; 64 covers any mesh we can load.
-        let mut stack = [0u32; 64];
+        // The tree is at most `depth` levels deep (median splits), so the stack of pending
+        // far children never holds more than `depth` nodes.
+        let mut stack = [0u32; MAX_DEPTH];
         let mut top = 0;
         let mut node = 0u32;
         loop {
+            if cost.nodes >= self.budget {
+                self.cut_short.fetch_add(1, Ordering::Relaxed);
+                return Search {
+                    hit: best,
+                    complete: false,
+                    cost,
+                };
+            }
+            cost.nodes += 1;
             let n = &self.nodes[node as usize];
             if n.count > 0 {
                 let first = n.first as usize;
+                cost.triangles += n.count;
                 for i in first..first + n.count as usize {
                     let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
                     let (point, bary) = closest_on_triangle(p, a, b, c);
@@ -150,7 +226,7 @@ impl<'a> TriangleBvh<'a> {
                 } else {
                     (r, dr, l, dl)
                 };
-                if d_far < best_d2 && top < stack.len() {
+                if d_far < best_d2 {
                     stack[top] = far;
                     top += 1;
                 }
@@ -162,7 +238,11 @@ impl<'a> TriangleBvh<'a> {
             // Next pending node that can still hold something closer.
             loop {
                 if top == 0 {
-                    return best;
+                    return Search {
+                        hit: best,
+                        complete: true,
+                        cost,
+                    };
                 }
                 top -= 1;
                 node = stack[top];
@@ -171,6 +251,16 @@ impl<'a> TriangleBvh<'a> {
                 }
             }
         }
+    }
+
+    /// Nodes one search may visit: [`BUDGET_PER_LEVEL`] per level of this tree.
+    pub fn budget(&self) -> u32 {
+        self.budget
+    }
+
+    /// Searches so far that stopped at the budget (their answers are upper bounds).
+    pub fn cut_short(&self) -> u64 {
+        self.cut_short.load(Ordering::Relaxed)
     }
 
     /// The closest point of triangle `t` of the mesh (indexed or not) to `p`.
@@ -182,6 +272,37 @@ impl<'a> TriangleBvh<'a> {
             point,
             bary,
             distance_squared: point.distance_squared(p),
+        }
+    }
+}
+
+/// Levels below the root of the tree over `len` triangles (median splits, leaves of up to
+/// [`LEAF_SIZE`]).
+fn depth(len: usize) -> u32 {
+    let mut d = 0;
+    let mut len = len;
+    while len > LEAF_SIZE {
+        len = len.div_ceil(2);
+        d += 1;
+    }
+    debug_assert!((d as usize) < MAX_DEPTH);
+    d
+}
+
+impl Drop for TriangleBvh<'_> {
+    /// The searches cut short are said once per index, when it goes: the answers they gave
+    /// are upper bounds, and the log is where an operator looks for why a figure is.
+    fn drop(&mut self) {
+        let cut_short = self.cut_short();
+        if cut_short > 0 {
+            tracing::warn!(
+                searches = cut_short,
+                triangles = self.order.len(),
+                budget_nodes = self.budget,
+                "closest-point searches stopped at their budget: the triangles overlap so that \
+                 no box separates them; those answers are the nearest triangle found, an upper \
+                 bound on the distance"
+            );
         }
     }
 }

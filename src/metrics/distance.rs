@@ -21,6 +21,15 @@ pub struct OneSided {
     pub mean: f64,
     pub rms: f64,
     pub max: f64,
+    /// Samples whose closest-point search stopped at its budget (triangles overlapping so
+    /// that no box separates them, [`super::bvh::TriangleBvh::search`]): their distances
+    /// are upper bounds. Left out of the report when there are none.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub inexact: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// Surface distance between result and reference, in model units and as fractions of the
@@ -50,6 +59,7 @@ fn one_sided(closest: &[Closest]) -> OneSided {
         mean: s.mean,
         rms: s.rms,
         max: s.max,
+        inexact: closest.iter().filter(|c| !c.exact).count(),
     }
 }
 

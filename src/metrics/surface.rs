@@ -2,7 +2,7 @@
 //! closest-point queries on the other surface through a BVH (parry3d-f64's `TriMesh`).
 
 use super::MetricsError;
-use super::bvh::{TriangleBvh, TriangleHit};
+use super::bvh::{Search, TriangleBvh};
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rand::{RngExt, SeedableRng};
@@ -91,6 +91,10 @@ pub fn interpolate_position(mesh: &Mesh, t: usize, bary: DVec3) -> DVec3 {
 pub struct Closest {
     pub on: SurfacePoint,
     pub distance: f64,
+    /// Whether the search proved this the closest point; `false` when it stopped at its
+    /// budget (overlapping triangles, [`super::bvh::TriangleBvh::search`]): `distance` is
+    /// then an upper bound.
+    pub exact: bool,
 }
 
 /// An index over a mesh's triangles for exact closest-point queries ([`super::bvh`]).
@@ -123,7 +127,7 @@ impl<'a> SurfaceIndex<'a> {
 
     /// The exact closest point of the surface to `p`.
     pub fn closest(&self, p: DVec3) -> Closest {
-        self.to_closest(p, self.bvh.closest(p, None))
+        self.to_closest(p, self.bvh.search(p, None))
     }
 
     /// The exact closest point of the surface to `p`, knowing that triangle `near` of the
@@ -134,12 +138,12 @@ impl<'a> SurfaceIndex<'a> {
             return self.closest(p);
         }
         let start = self.bvh.hit_on(p, near as u32);
-        self.to_closest(p, self.bvh.closest(p, Some(start)))
+        self.to_closest(p, self.bvh.search(p, Some(start)))
     }
 
-    fn to_closest(&self, p: DVec3, hit: Option<TriangleHit>) -> Closest {
+    fn to_closest(&self, p: DVec3, search: Search) -> Closest {
         // The index is never empty (checked in `new`); the fallback only avoids a panic.
-        let hit = hit.unwrap_or_else(|| self.bvh.hit_on(p, 0));
+        let hit = search.hit.unwrap_or_else(|| self.bvh.hit_on(p, 0));
         Closest {
             on: SurfacePoint {
                 triangle: hit.triangle,
@@ -147,6 +151,7 @@ impl<'a> SurfaceIndex<'a> {
                 point: hit.point,
             },
             distance: hit.distance_squared.sqrt(),
+            exact: search.complete,
         }
     }
 

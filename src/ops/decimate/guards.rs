@@ -32,8 +32,11 @@ pub enum LinkShape {
 /// Scratch for [`link_shape`], reused so that the hot loop does not allocate.
 #[derive(Debug, Default)]
 pub struct LinkScratch {
-    verts: Vec<(u32, u32)>,
-    used: Vec<bool>,
+    /// The link's vertices, sorted and distinct.
+    verts: Vec<u32>,
+    /// Per vertex (as in `verts`): link edges at it, then its component's root.
+    degree: Vec<u32>,
+    parent: Vec<u32>,
 }
 
 /// The link condition in its general form: after merging, the triangles around the new
@@ -43,58 +46,57 @@ pub struct LinkScratch {
 /// vertex), and a repeated link edge (a duplicate triangle) is refused. This subsumes the
 /// usual `Lk(a) ∩ Lk(b) = Lk(ab)` test for edge collapse and extends it to face collapse.
 /// Orientation is ignored, so inconsistently oriented input does not trip it.
+///
+/// O(k log k) for k link edges (a sort, then union–find over the link's vertices): a
+/// vertex of valence 50,000 must not cost 50,000² steps.
 pub fn link_shape(edges: &[(u32, u32)], sc: &mut LinkScratch) -> Option<LinkShape> {
-    if edges.is_empty() {
+    if edges.is_empty() || edges.iter().any(|&(x, y)| x == y) {
         return None;
     }
     sc.verts.clear();
+    sc.verts.extend(edges.iter().flat_map(|&(x, y)| [x, y]));
+    sc.verts.sort_unstable();
+    sc.verts.dedup();
+    let nv = sc.verts.len();
+    sc.degree.clear();
+    sc.degree.resize(nv, 0);
+    sc.parent.clear();
+    sc.parent.extend(0..nv as u32);
+    let at = |verts: &[u32], v: u32| verts.binary_search(&v).unwrap_or(0);
+    let mut components = nv;
     for &(x, y) in edges {
-        if x == y {
-            return None;
-        }
-        for v in [x, y] {
-            match sc.verts.iter_mut().find(|e| e.0 == v) {
-                Some(e) => {
-                    e.1 += 1;
-                    if e.1 > 2 {
-                        return None;
-                    }
-                }
-                None => sc.verts.push((v, 1)),
+        let (i, j) = (at(&sc.verts, x), at(&sc.verts, y));
+        for k in [i, j] {
+            sc.degree[k] += 1;
+            if sc.degree[k] > 2 {
+                return None;
             }
         }
+        let (ri, rj) = (root(&mut sc.parent, i), root(&mut sc.parent, j));
+        if ri != rj {
+            sc.parent[ri.max(rj)] = ri.min(rj) as u32;
+            components -= 1;
+        }
     }
-    let ones = sc.verts.iter().filter(|e| e.1 == 1).count();
-    let (nv, ne) = (sc.verts.len(), edges.len());
+    let ones = sc.degree.iter().filter(|&&d| d == 1).count();
+    let ne = edges.len();
     let shape = match ones {
         0 if ne == nv && ne >= 3 => LinkShape::Cycle,
         2 if ne + 1 == nv => LinkShape::Path,
         _ => return None,
     };
-    // Connectivity: walk from an end (path) or anywhere (cycle) and count the edges met.
-    let start = match shape {
-        LinkShape::Path => sc.verts.iter().find(|e| e.1 == 1).map(|e| e.0)?,
-        LinkShape::Cycle => edges[0].0,
-    };
-    sc.used.clear();
-    sc.used.resize(ne, false);
-    let mut cur = start;
-    let mut walked = 0;
-    loop {
-        let next = edges
-            .iter()
-            .enumerate()
-            .find(|&(i, &(x, y))| !sc.used[i] && (x == cur || y == cur));
-        match next {
-            Some((i, &(x, y))) => {
-                sc.used[i] = true;
-                walked += 1;
-                cur = if x == cur { y } else { x };
-            }
-            None => break,
-        }
+    // Every vertex has a link edge, so one component of vertices is one of edges.
+    (components == 1).then_some(shape)
+}
+
+/// The root of `i`'s component, halving the path on the way.
+fn root(parent: &mut [u32], mut i: usize) -> usize {
+    while parent[i] as usize != i {
+        let p = parent[i] as usize;
+        parent[i] = parent[p];
+        i = p;
     }
-    (walked == ne).then_some(shape)
+    i
 }
 
 /// Triangle shape quality `4√3·A / (l₁² + l₂² + l₃²)`: 1 for equilateral, 0 for degenerate.
@@ -148,6 +150,79 @@ mod tests {
         // Duplicate triangle: a 2-cycle.
         assert_eq!(link_shape(&[(1, 2), (1, 2)], &mut sc), None);
         assert_eq!(link_shape(&[], &mut sc), None);
+    }
+
+    /// The shape by the definition, step by step (a walk from one end): what
+    /// [`link_shape`] must agree with.
+    fn link_shape_by_walking(edges: &[(u32, u32)]) -> Option<LinkShape> {
+        if edges.is_empty() || edges.iter().any(|&(x, y)| x == y) {
+            return None;
+        }
+        let degree = |v: u32| edges.iter().filter(|&&(x, y)| x == v || y == v).count();
+        let mut verts: Vec<u32> = edges.iter().flat_map(|&(x, y)| [x, y]).collect();
+        verts.sort_unstable();
+        verts.dedup();
+        if verts.iter().any(|&v| degree(v) > 2) {
+            return None;
+        }
+        let ones = verts.iter().filter(|&&v| degree(v) == 1).count();
+        let shape = match ones {
+            0 if edges.len() == verts.len() && edges.len() >= 3 => LinkShape::Cycle,
+            2 if edges.len() + 1 == verts.len() => LinkShape::Path,
+            _ => return None,
+        };
+        let mut cur = match shape {
+            LinkShape::Path => *verts.iter().find(|&&v| degree(v) == 1)?,
+            LinkShape::Cycle => edges[0].0,
+        };
+        let mut used = vec![false; edges.len()];
+        let mut walked = 0;
+        while let Some(i) =
+            (0..edges.len()).find(|&i| !used[i] && (edges[i].0 == cur || edges[i].1 == cur))
+        {
+            used[i] = true;
+            walked += 1;
+            cur = if edges[i].0 == cur {
+                edges[i].1
+            } else {
+                edges[i].0
+            };
+        }
+        (walked == edges.len()).then_some(shape)
+    }
+
+    #[test]
+    fn link_shape_agrees_with_the_walk_on_random_links() {
+        let mut sc = LinkScratch::default();
+        let mut x = 7u64;
+        let mut next = |m: u64| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (x >> 33) % m
+        };
+        let (mut cycles, mut paths) = (0, 0);
+        for _ in 0..20_000 {
+            let n = 1 + next(9);
+            // Mostly rings and paths over few labels, some shuffled and broken.
+            let mut edges: Vec<(u32, u32)> = match next(3) {
+                0 => (0..n).map(|i| (i as u32, ((i + 1) % n) as u32)).collect(),
+                1 => (0..n).map(|i| (i as u32, i as u32 + 1)).collect(),
+                _ => (0..n).map(|_| (next(6) as u32, next(6) as u32)).collect(),
+            };
+            for _ in 0..next(3) {
+                let i = next(edges.len() as u64) as usize;
+                edges[i].1 = next(12) as u32;
+            }
+            for i in (1..edges.len()).rev() {
+                edges.swap(i, next(i as u64 + 1) as usize);
+            }
+            let want = link_shape_by_walking(&edges);
+            assert_eq!(link_shape(&edges, &mut sc), want, "{edges:?}");
+            cycles += usize::from(want == Some(LinkShape::Cycle));
+            paths += usize::from(want == Some(LinkShape::Path));
+        }
+        assert!(cycles > 1000 && paths > 1000, "{cycles} {paths}");
     }
 
     #[test]

@@ -267,6 +267,9 @@ pub enum Refusal {
     Locked,
     /// The collapse's error exceeds `max_error`.
     MaxError,
+    /// The merged vertices have more corners together than [`work::MAX_STAR`] (a vertex
+    /// of very high valence, e.g. the centre of a large fan): checking it would cost too much.
+    Valence,
 }
 
 /// Collapses refused, by cause.
@@ -280,6 +283,13 @@ pub struct RefusedCounts {
     pub boundary: usize,
     pub locked: usize,
     pub max_error: usize,
+    /// Not in reports where it is zero (no scan meets it; reports stay as they were).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub valence: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl RefusedCounts {
@@ -303,6 +313,10 @@ impl RefusedCounts {
             (self.texture_flip, "would fold the texture over"),
             (self.degenerate, "would make a degenerate triangle"),
             (self.max_error, "exceeds max_error"),
+            (
+                self.valence,
+                "would merge vertices with more triangles around them than a merge may check",
+            ),
         ];
         v.retain(|e| e.0 > 0);
         v.sort_by_key(|e| std::cmp::Reverse(e.0));
@@ -318,6 +332,7 @@ impl RefusedCounts {
             + self.boundary
             + self.locked
             + self.max_error
+            + self.valence
     }
 
     /// Adds another loop's counts to these.
@@ -330,6 +345,7 @@ impl RefusedCounts {
         self.boundary += o.boundary;
         self.locked += o.locked;
         self.max_error += o.max_error;
+        self.valence += o.valence;
     }
 
     pub fn count(&mut self, cause: Refusal) {
@@ -342,6 +358,7 @@ impl RefusedCounts {
             Refusal::Boundary => self.boundary += 1,
             Refusal::Locked => self.locked += 1,
             Refusal::MaxError => self.max_error += 1,
+            Refusal::Valence => self.valence += 1,
         }
     }
 }

@@ -22,6 +22,71 @@ use rayon::prelude::*;
 
 pub const NIL: u32 = u32::MAX;
 
+/// Most corners the vertices of one merge may have together ([`Work::star`]). A merge walks
+/// its vertices' corners and checks every triangle that survives around them, so one
+/// attempt costs time in their number; around a vertex of valence k (a fan of 50,000
+/// triangles) each of its k edges would cost k, O(k²) in all. Larger merges are refused
+/// ([`Refusal::Valence`]) before any walk, which keeps every attempt O(`MAX_STAR`). Scan
+/// vertices have a few dozen corners at most, even late in a decimation to a fifteenth
+/// (tests/quadratic_corners.rs counts the refusals on the scans: none).
+pub const MAX_STAR: u32 = 256;
+
+/// Distinct `u32` keys in the order they were first met, and the place of each: a plain
+/// scan while there are few (a vertex has one to four wedges), a hash map from
+/// [`KeyIndex::SCAN`] keys on, so that a vertex with k wedges costs O(k), not O(k²).
+#[derive(Debug, Default)]
+pub struct KeyIndex {
+    keys: Vec<u32>,
+    places: rustc_hash::FxHashMap<u32, u32>,
+}
+
+impl KeyIndex {
+    /// Up to this many keys a scan is cheaper than hashing.
+    const SCAN: usize = 16;
+
+    pub fn clear(&mut self) {
+        self.keys.clear();
+        self.places.clear();
+    }
+
+    pub fn keys(&self) -> &[u32] {
+        &self.keys
+    }
+
+    pub fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.keys.is_empty()
+    }
+
+    /// The place of `key`, if met.
+    pub fn get(&self, key: u32) -> Option<usize> {
+        if self.keys.len() <= Self::SCAN {
+            self.keys.iter().position(|&k| k == key)
+        } else {
+            self.places.get(&key).map(|&i| i as usize)
+        }
+    }
+
+    /// The place of `key`, adding it at the end if new; `true` when it was new.
+    pub fn insert(&mut self, key: u32) -> (usize, bool) {
+        if let Some(i) = self.get(key) {
+            return (i, false);
+        }
+        let i = self.keys.len();
+        self.keys.push(key);
+        if self.keys.len() == Self::SCAN + 1 {
+            self.places
+                .extend(self.keys.iter().enumerate().map(|(i, &k)| (k, i as u32)));
+        } else if self.keys.len() > Self::SCAN + 1 {
+            self.places.insert(key, i as u32);
+        }
+        (i, true)
+    }
+}
+
 /// Octahedral encoding of a direction (any length; zero stays zero) in two signed 16-bit
 /// halves: the direction is projected onto the octahedron |x| + |y| + |z| = 1 and the
 /// lower half folded over onto the upper. Angular error below 1e-4 rad. The zero vector
@@ -59,6 +124,11 @@ pub fn oct_decode(e: u32) -> [f64; 3] {
     } else {
         [x, y, z]
     }
+}
+
+/// Binary digits of `n` (⌈log₂(n + 1)⌉): the steps of a binary search over `n` items.
+fn bits(n: usize) -> usize {
+    (usize::BITS - n.leading_zeros()) as usize
 }
 
 /// Settings of the merge machinery, resolved from the step parameters.
@@ -119,7 +189,8 @@ pub struct Scratch<const M: usize> {
     pub corners: Vec<u32>,
     /// Triangles that the merge deletes (two or more corners in S).
     pub dead: Vec<u32>,
-    lw: Vec<u32>,
+    /// The wedges at S, in the order met.
+    lw: KeyIndex,
     lw_si: Vec<u8>,
     lw_parent: Vec<u32>,
     lw_group: Vec<u32>,
@@ -136,7 +207,7 @@ impl<const M: usize> Default for Scratch<M> {
             ns: 0,
             corners: Vec::with_capacity(64),
             dead: Vec::with_capacity(8),
-            lw: Vec::with_capacity(16),
+            lw: KeyIndex::default(),
             lw_si: Vec::with_capacity(16),
             lw_parent: Vec::with_capacity(16),
             lw_group: Vec::with_capacity(16),
@@ -150,7 +221,7 @@ impl<const M: usize> Default for Scratch<M> {
 
 impl<const M: usize> Scratch<M> {
     fn local(&self, w: u32) -> usize {
-        self.lw.iter().position(|&x| x == w).unwrap_or(usize::MAX)
+        self.lw.get(w).unwrap_or(usize::MAX)
     }
     fn find(&mut self, mut i: usize) -> usize {
         while self.lw_parent[i] as usize != i {
@@ -187,6 +258,8 @@ pub struct Work<'a, const M: usize> {
     pub border: Vec<bool>,
     pub vfirst: Vec<u32>,
     pub cnext: Vec<u32>,
+    /// Length of each vertex's corner list (live and dead corners: what a walk costs).
+    pub star: Vec<u32>,
     /// Wedge indices of each triangle.
     pub tris: Vec<[u32; 3]>,
     /// Vertex indices of each triangle; `[NIL; 3]` once deleted.
@@ -209,6 +282,11 @@ pub struct Work<'a, const M: usize> {
     pub has_normals: bool,
     pub cfg: Config,
     pub classes: ClassCounts,
+    /// Inner-loop steps of the vertex classification (corners and neighbours visited,
+    /// sort and search steps), for the cost tests: it must grow like the corner count, not
+    /// like the square of a vertex's valence.
+    #[doc(hidden)]
+    pub classify_steps: u64,
 }
 
 impl<'a, const M: usize> Work<'a, M> {
@@ -259,10 +337,12 @@ impl<'a, const M: usize> Work<'a, M> {
         // Corner lists, ascending (built by prepending in reverse).
         let mut vfirst = vec![NIL; nv];
         let mut cnext = vec![NIL; tris.len() * 3];
+        let mut star = vec![0u32; nv];
         for c in (0..tris.len() * 3).rev() {
             let v = wvert[tris[c / 3][c % 3] as usize] as usize;
             cnext[c] = vfirst[v];
             vfirst[v] = c as u32;
+            star[v] += 1;
         }
         let nw = wvert.len();
         let tv: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|w| wvert[w as usize])).collect();
@@ -276,6 +356,7 @@ impl<'a, const M: usize> Work<'a, M> {
             border: vec![false; nv],
             vfirst,
             cnext,
+            star,
             live: tris.len(),
             tris,
             tv,
@@ -299,6 +380,7 @@ impl<'a, const M: usize> Work<'a, M> {
             has_normals,
             cfg,
             classes: ClassCounts::default(),
+            classify_steps: 0,
         };
         let (t0, c0) = (std::time::Instant::now(), super::cpu_seconds());
         work.quadrics();
@@ -309,6 +391,7 @@ impl<'a, const M: usize> Work<'a, M> {
             classify_ms = t1.elapsed().as_secs_f64() * 1e3,
             quadrics_cpu_ms = (c1 - c0) * 1e3,
             classify_cpu_ms = (super::cpu_seconds() - c1) * 1e3,
+            classify_steps = work.classify_steps,
             "decimate set-up"
         );
         work
@@ -327,38 +410,38 @@ impl<'a, const M: usize> Work<'a, M> {
         let this = &*self;
         let vred: Vec<Reduced> = (0..this.pos.len())
             .into_par_iter()
-            .map_init(Vec::<(u32, AttrPart<M>)>::new, |local, v| {
-                let out = &out;
-                local.clear();
-                let mut red = Reduced::default();
-                let mut c = this.vfirst[v];
-                while c != NIL {
-                    let (t, k) = (c as usize / 3, c as usize % 3);
-                    let w = this.tris[t][k];
-                    let i = match local.iter().position(|e| e.0 == w) {
-                        Some(i) => i,
-                        None => {
-                            local.push((w, AttrPart::default()));
-                            local.len() - 1
+            .map_init(
+                || (KeyIndex::default(), Vec::<AttrPart<M>>::new()),
+                |(wedges, sums), v| {
+                    let out = &out;
+                    wedges.clear();
+                    sums.clear();
+                    let mut red = Reduced::default();
+                    let mut c = this.vfirst[v];
+                    while c != NIL {
+                        let (t, k) = (c as usize / 3, c as usize % 3);
+                        let (i, new) = wedges.insert(this.tris[t][k]);
+                        if new {
+                            sums.push(AttrPart::default());
                         }
-                    };
-                    if let Some(q) = this.face_quadric(t) {
-                        let (geo, attr) = q.split();
-                        red.add(&geo);
-                        local[i].1.add(&attr);
+                        if let Some(q) = this.face_quadric(t) {
+                            let (geo, attr) = q.split();
+                            red.add(&geo);
+                            sums[i].add(&attr);
+                        }
+                        c = this.cnext[c as usize];
                     }
-                    c = this.cnext[c as usize];
-                }
-                for (w, a) in local.iter() {
-                    red.schur(a, &this.w, -1.0);
-                    // SAFETY: `wq` outlives this loop and nothing else touches it meanwhile.
-                    // Wedge `w` is reached only through the corners of its own vertex `v`
-                    // (the corner lists are built from `wvert`), and each vertex is one
-                    // task, so no two tasks write the same wedge.
-                    unsafe { out.set(*w as usize, a) };
-                }
-                red
-            })
+                    for (&w, a) in wedges.keys().iter().zip(sums.iter()) {
+                        red.schur(a, &this.w, -1.0);
+                        // SAFETY: `wq` outlives this loop and nothing else touches it
+                        // meanwhile. Wedge `w` is reached only through the corners of its own
+                        // vertex `v` (the corner lists are built from `wvert`), and each
+                        // vertex is one task, so no two tasks write the same wedge.
+                        unsafe { out.set(w as usize, a) };
+                    }
+                    red
+                },
+            )
             .collect();
         self.wq = wq;
         self.vred = vred;
@@ -386,6 +469,7 @@ impl<'a, const M: usize> Work<'a, M> {
             class: VClass,
             border: bool,
             planes: Planes,
+            steps: u64,
         }
         let infos: Vec<Info> = (0..self.pos.len())
             .into_par_iter()
@@ -395,9 +479,10 @@ impl<'a, const M: usize> Work<'a, M> {
                         Vec::<(u32, u32)>::new(),
                         Vec::<u32>::new(),
                         LinkScratch::default(),
+                        Vec::<(u32, u32)>::new(),
                     )
                 },
-                |(link, corners, lsc), v| {
+                |(link, corners, lsc, touching), v| {
                     corners.clear();
                     let mut c = self.vfirst[v];
                     while c != NIL {
@@ -409,6 +494,7 @@ impl<'a, const M: usize> Work<'a, M> {
                             class: VClass::Fixed,
                             border: false,
                             planes: None,
+                            steps: 1,
                         };
                     }
                     link.clear();
@@ -433,6 +519,20 @@ impl<'a, const M: usize> Work<'a, M> {
                     let mut seam_edges = 0;
                     let mut border_edges = 0;
                     let mut planes = Vec::new();
+                    // Which corners' triangles touch each vertex: (vertex, corner's place in
+                    // `corners`), sorted, so that the triangles on an edge (v, x) are one
+                    // run, found by a binary search (O(k log k) for valence k, not O(k²)).
+                    touching.clear();
+                    for (i, &c) in corners.iter().enumerate() {
+                        let tv = self.tris[c as usize / 3].map(|w| self.wvert[w as usize]);
+                        for (k, &y) in tv.iter().enumerate() {
+                            if !tv[..k].contains(&y) {
+                                touching.push((y, i as u32));
+                            }
+                        }
+                    }
+                    touching.sort_unstable();
+                    let mut steps = (corners.len() + touching.len() * bits(touching.len())) as u64;
                     // Every neighbour x: the triangles on edge (v, x).
                     for (i, &ci) in corners.iter().enumerate() {
                         let (ti, ki) = (ci as usize / 3, ci as usize % 3);
@@ -440,18 +540,17 @@ impl<'a, const M: usize> Work<'a, M> {
                         for side in [1, 2] {
                             let x_w = tri_i[(ki + side) % 3];
                             let x = self.wvert[x_w as usize];
+                            // The corners whose triangles have x, in order; corner i's is one.
+                            let lo = touching.partition_point(|e| e.0 < x);
+                            let hi = touching.partition_point(|e| e.0 <= x);
+                            steps += 2 * bits(touching.len()) as u64;
+                            let run = &touching[lo..hi];
                             // Count each edge once: from the first corner that has it.
-                            let earlier = corners[..i].iter().any(|&cj| {
-                                let tj = self.tris[cj as usize / 3];
-                                tj.iter().any(|&w| self.wvert[w as usize] == x)
-                            });
-                            if earlier {
+                            if run[0].1 < i as u32 {
                                 continue;
                             }
-                            let mut others = corners[i + 1..].iter().filter(|&&cj| {
-                                let tj = self.tris[cj as usize / 3];
-                                tj.iter().any(|&w| self.wvert[w as usize] == x)
-                            });
+                            steps += run.len().min(3) as u64;
+                            let mut others = run[1..].iter().map(|e| &corners[e.1 as usize]);
                             match (others.next(), others.next()) {
                                 (None, _) => {
                                     border_edges += 1;
@@ -500,11 +599,13 @@ impl<'a, const M: usize> Work<'a, M> {
                         class,
                         border: border_edges > 0 || shape == Some(LinkShape::Path),
                         planes: (!planes.is_empty()).then(|| Box::new(planes)),
+                        steps,
                     }
                 },
             )
             .collect();
         for (v, info) in infos.into_iter().enumerate() {
+            self.classify_steps += info.steps;
             let class = match (info.class, self.cfg.boundary) {
                 (VClass::Border, BoundaryMode::Keep) => VClass::Fixed,
                 (c, _) => c,
@@ -690,6 +791,7 @@ impl<'a, const M: usize> Work<'a, M> {
     /// the class rules. [`Work::evaluate`] computes the exact plan when the key comes up.
     pub fn quick_cost(&self, s: &[u32]) -> Result<f64, Refusal> {
         let anchors = self.rules(s, None)?;
+        self.star_fits(s)?;
         let mut red = Reduced::default();
         for &v in s {
             red.add(&self.vred[v as usize]);
@@ -705,6 +807,15 @@ impl<'a, const M: usize> Work<'a, M> {
         Ok(cost)
     }
 
+    /// Refuses a merge whose vertices have more than [`MAX_STAR`] corners together.
+    fn star_fits(&self, s: &[u32]) -> Result<(), Refusal> {
+        let corners: u64 = s.iter().map(|&v| u64::from(self.star[v as usize])).sum();
+        if corners > u64::from(MAX_STAR) {
+            return Err(Refusal::Valence);
+        }
+        Ok(())
+    }
+
     /// Gathers the star of S, groups the wedges and places the merged vertex.
     pub fn evaluate(&self, s: &[u32], sc: &mut Scratch<M>) -> Result<Plan, Refusal> {
         let ns = s.len();
@@ -716,6 +827,7 @@ impl<'a, const M: usize> Work<'a, M> {
         sc.lw.clear();
         sc.lw_si.clear();
         sc.groups.clear();
+        self.star_fits(s)?;
         for (si, &v) in s.iter().enumerate() {
             let mut c = self.vfirst[v as usize];
             while c != NIL {
@@ -738,8 +850,7 @@ impl<'a, const M: usize> Work<'a, M> {
                         sc.corners.push(c);
                     }
                     let w = self.tris[t][k];
-                    if !sc.lw.contains(&w) {
-                        sc.lw.push(w);
+                    if sc.lw.insert(w).1 {
                         sc.lw_si.push(si as u8);
                     }
                 }
@@ -782,7 +893,7 @@ impl<'a, const M: usize> Work<'a, M> {
             if sc.lw_group[r] == NIL {
                 sc.lw_group[r] = sc.groups.len() as u32;
                 sc.groups.push(Group {
-                    rep: sc.lw[r],
+                    rep: sc.lw.keys()[r],
                     size: 0,
                     q: AttrPart::default(),
                     at: [NIL; 3],
@@ -791,7 +902,7 @@ impl<'a, const M: usize> Work<'a, M> {
             }
             let g = sc.lw_group[r];
             sc.lw_group[l] = g;
-            let w = sc.lw[l];
+            let w = sc.lw.keys()[l];
             let si = sc.lw_si[l] as usize;
             let group = &mut sc.groups[g as usize];
             if group.at[si] != NIL {
@@ -807,7 +918,7 @@ impl<'a, const M: usize> Work<'a, M> {
         if sc.groups.len() < sc.lw.len() {
             for l in 0..sc.lw.len() {
                 if sc.groups[sc.lw_group[l] as usize].size > 1 {
-                    red.schur(&self.wq.get(sc.lw[l] as usize), &self.w, 1.0);
+                    red.schur(&self.wq.get(sc.lw.keys()[l] as usize), &self.w, 1.0);
                 }
             }
             for g in &sc.groups {
@@ -1036,6 +1147,10 @@ impl<'a, const M: usize> Work<'a, M> {
             next = c;
         }
         self.vfirst[n as usize] = next;
+        for &v in s {
+            self.star[v as usize] = 0;
+        }
+        self.star[n as usize] = sc.corners.len() as u32;
         n
     }
 
@@ -1068,6 +1183,7 @@ impl<'a, const M: usize> Work<'a, M> {
         self.vred = Vec::new();
         self.cnext = Vec::new();
         self.vfirst = Vec::new();
+        self.star = Vec::new();
         self.onormal = Vec::new();
         let input = self.input;
         let scale = 1.0 / self.inv_scale;
