@@ -82,6 +82,11 @@ fn default_recipe() -> PathBuf {
     PathBuf::from("config/recipes/face-scan.toml")
 }
 
+/// Longest duration any `*_secs` key may hold: a year. The daemon adds these to the clock
+/// (deadlines, timers); far larger values overflow it and panic at run time (issue #22:
+/// `job_timeout_secs = 1e300`, `rescan_secs = 1e19`), and no real setting comes near a year.
+pub const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
+
 /// One watched folder.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -192,12 +197,12 @@ impl DaemonConfig {
     pub fn from_toml(text: &str, path: &Path) -> Result<DaemonConfig, ConfigError> {
         toml::from_str(text).map_err(|e| ConfigError::Parse {
             path: path.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
+            message: crate::recipe::toml_error_message(text, &e),
         })
     }
 
     pub fn from_path(path: &Path) -> Result<DaemonConfig, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        let text = crate::recipe::read_settings_file(path).map_err(|source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
         })?;
@@ -235,9 +240,9 @@ impl DaemonConfig {
     pub fn validate(&self) -> Vec<String> {
         let mut problems = Vec::new();
         let positive = |name: &str, v: f64, problems: &mut Vec<String>| {
-            if !(v.is_finite() && v > 0.0) {
+            if !(v.is_finite() && v > 0.0 && v <= MAX_SECONDS) {
                 problems.push(format!(
-                    "{name} must be a positive number of seconds, not {v}"
+                    "{name} must be a positive number of seconds up to {MAX_SECONDS}, not {v}"
                 ));
             }
         };
@@ -264,14 +269,19 @@ impl DaemonConfig {
         let state = absolute(&self.state_dir);
         for (i, w) in self.watch.iter().enumerate() {
             let name = format!("watch[{i}] ({})", w.path.display());
-            if !(w.quiet_period_secs.is_finite() && w.quiet_period_secs >= 0.05) {
+            if !(w.quiet_period_secs.is_finite()
+                && (0.05..=MAX_SECONDS).contains(&w.quiet_period_secs))
+            {
                 problems.push(format!(
-                    "{name}: quiet_period_secs must be at least 0.05, not {}",
+                    "{name}: quiet_period_secs must be 0.05 to {MAX_SECONDS}, not {}",
                     w.quiet_period_secs
                 ));
             }
-            if !(w.poll_secs.is_finite() && w.poll_secs >= 0.0) {
-                problems.push(format!("{name}: poll_secs must be 0 or positive"));
+            if !(w.poll_secs.is_finite() && (0.0..=MAX_SECONDS).contains(&w.poll_secs)) {
+                problems.push(format!(
+                    "{name}: poll_secs must be 0 to {MAX_SECONDS}, not {}",
+                    w.poll_secs
+                ));
             }
             for p in w.include.iter().chain(&w.exclude) {
                 if p.is_empty() {
