@@ -5,6 +5,7 @@
 //! paths). Unknown keys are errors. [`DaemonConfig::validate`] collects every problem at
 //! once, so that `scanmill validate-config` can list them all.
 
+use crate::mesh::InputLimits;
 use crate::recipe::{Recipe, RecipeError};
 use serde::{Deserialize, Serialize};
 use std::path::{Component, Path, PathBuf};
@@ -161,6 +162,10 @@ pub struct DaemonConfig {
     /// Claiming pauses while an output folder's file system has less free space than this.
     #[serde(default = "default_min_free_disk_mb")]
     pub min_free_disk_mb: u64,
+    /// Input limits of every job (`[limits]`, see `mesh::limits`); missing keys take their
+    /// defaults.
+    #[serde(default)]
+    pub limits: InputLimits,
     #[serde(default)]
     pub watch: Vec<WatchConfig>,
 }
@@ -181,6 +186,7 @@ impl DaemonConfig {
             incomplete_report_secs: default_incomplete_report_secs(),
             max_input_bytes: default_max_input_bytes(),
             min_free_disk_mb: default_min_free_disk_mb(),
+            limits: InputLimits::default(),
             watch: vec![WatchConfig {
                 path: PathBuf::from("./inbox"),
                 output: PathBuf::from("./outbox"),
@@ -262,6 +268,7 @@ impl DaemonConfig {
             self.incomplete_report_secs,
             &mut problems,
         );
+        problems.extend(self.limits.validate());
         if self.watch.is_empty() {
             problems.push("no [[watch]] folder configured".into());
         }

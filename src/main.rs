@@ -144,7 +144,7 @@ fn mesh_error_code(e: &MeshError) -> u8 {
         MeshError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
             exit::NO_INPUT
         }
-        MeshError::Io { .. } => exit::IO_ERROR,
+        MeshError::Io { .. } | MeshError::Write { .. } => exit::IO_ERROR,
         _ => exit::DATA_ERROR,
     }
 }
@@ -204,6 +204,9 @@ fn run_process(
 }
 
 fn run_inspect(file: &Path, json: bool, weld_tolerance: f64) -> Result<(), (u8, anyhow::Error)> {
+    scanmill::recipe::validate_weld_tolerance(weld_tolerance)
+        .map_err(|m| (exit::CONFIG_ERROR, anyhow::anyhow!("--weld-tolerance: {m}")))?;
+    // The default input limits; a FIFO or device is refused at once by the loader.
     let options = LoadOptions {
         weld_tolerance,
         ..LoadOptions::default()

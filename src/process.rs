@@ -2,8 +2,10 @@
 //! folder without ever leaving a half-written file there, and build the report.
 //! `scanmill process` and the daemon's worker both call [`process_scan`].
 
+use crate::daemon::publish::SIDECAR_SUFFIX;
+use crate::mesh::files::open_regular;
 use crate::mesh::ply::PlyEncoding;
-use crate::mesh::{LoadOptions, Mesh, MeshError, SaveOptions, load, save};
+use crate::mesh::{InputLimits, LoadOptions, Mesh, MeshError, SaveOptions, load, save_reserving};
 use crate::recipe::runner::{Progress, RunOutcome, StepError, run_recipe};
 use crate::recipe::{OutputFormat, PlyEncodingSpec, Recipe, Step};
 use crate::report::{
@@ -15,7 +17,8 @@ use std::time::Instant;
 
 #[derive(Debug, thiserror::Error)]
 pub enum ProcessError {
-    /// The input could not be read or is not a valid mesh.
+    /// The input could not be read, is not a valid mesh or is above a limit. (A
+    /// [`MeshError::Write`] is never an input error: see [`ProcessError::from_save`].)
     #[error(transparent)]
     Input(#[from] MeshError),
     /// A step failed.
@@ -25,9 +28,33 @@ pub enum ProcessError {
         #[source]
         source: StepError,
     },
-    /// Writing the result failed.
+    /// Writing the result failed (a full disk, a quota, permissions): transient, exit 74.
     #[error("{path}: cannot write output: {message}")]
     Output { path: PathBuf, message: String },
+}
+
+impl ProcessError {
+    /// The error of a writer: failing to write a file is an output error, failing to read a
+    /// file to copy (a texture that vanished) an input error.
+    fn from_save(e: MeshError) -> ProcessError {
+        match e {
+            MeshError::Write { path, source } => ProcessError::Output {
+                path,
+                message: source.to_string(),
+            },
+            other => ProcessError::Input(other),
+        }
+    }
+}
+
+/// How `process` treats its input, beyond the recipe.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ProcessOptions {
+    /// The texture image of an OBJ that names no material library (see
+    /// [`process_scan_with_texture`]).
+    pub texture: Option<PathBuf>,
+    /// Input limits: `scanmill process` uses the defaults, the daemon its `[limits]` table.
+    pub limits: InputLimits,
 }
 
 impl ProcessError {
@@ -61,8 +88,16 @@ fn output_error(path: &Path, e: impl std::fmt::Display) -> ProcessError {
     }
 }
 
+/// The names that scanmill itself writes beside the result `<stem>.<ext>` besides the mesh
+/// files: the preview and the daemon's sidecar. Copied textures never take these names,
+/// whatever the scan calls its textures.
+pub fn reserved_output_names(stem: &str) -> Vec<String> {
+    vec![preview_file_name(stem), format!("{stem}{SIDECAR_SUFFIX}")]
+}
+
 /// Writes `mesh` into `dir` in the recipe's format; returns the files written, the main
-/// mesh file last (so that publishing moves it last).
+/// mesh file last (so that publishing moves it last). Copied textures never take one of
+/// [`reserved_output_names`].
 pub fn write_mesh(
     mesh: &Mesh,
     recipe: &Recipe,
@@ -81,7 +116,13 @@ pub fn write_mesh(
         ),
     };
     let main_file = dir.join(format!("{stem}.{extension}"));
-    let mut written = save(mesh, &main_file, &SaveOptions { ply_encoding })?;
+    let mut written = save_reserving(
+        mesh,
+        &main_file,
+        &SaveOptions { ply_encoding },
+        &reserved_output_names(stem),
+    )
+    .map_err(ProcessError::from_save)?;
     written.retain(|f| *f != main_file);
     written.push(main_file);
     Ok(written)
@@ -178,6 +219,29 @@ pub fn process_scan_with_texture(
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<Report, ProcessError> {
+    let options = ProcessOptions {
+        texture: texture.map(Path::to_path_buf),
+        ..ProcessOptions::default()
+    };
+    process_scan_with_options(input, &options, recipe, recipe_path, out_dir, progress)
+}
+
+/// The hash of an input file, read only if it is a regular file (a FIFO or device is refused
+/// at once, never waited on).
+fn hash_input(path: &Path) -> Result<FileHash, MeshError> {
+    let (file, _) = open_regular(path)?;
+    FileHash::of_reader(path, file).map_err(|e| MeshError::io(path, e))
+}
+
+/// [`process_scan`] with every option: the one entry point the CLI and the daemon share.
+pub fn process_scan_with_options(
+    input: &Path,
+    process_options: &ProcessOptions,
+    recipe: &Recipe,
+    recipe_path: Option<&Path>,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<Report, ProcessError> {
     let total_start = Instant::now();
     let total_stages = recipe.steps.len() + 2 + usize::from(recipe.preview.enabled);
 
@@ -185,14 +249,15 @@ pub fn process_scan_with_texture(
     let load_start = Instant::now();
     let options = LoadOptions {
         weld_tolerance: recipe.input.weld_tolerance,
-        texture_override: texture.map(Path::to_path_buf),
+        texture_override: process_options.texture.clone(),
+        limits: process_options.limits.clone(),
         ..LoadOptions::default()
     };
     // The input's hash is read on a thread of its own beside the load (a second read of
     // the file, from the page cache; ~40 ms for a 400k-triangle OBJ, much of the load is
     // sequential).
     let (loaded, input_hash) = std::thread::scope(|scope| {
-        let hash = scope.spawn(|| FileHash::of(input));
+        let hash = scope.spawn(|| hash_input(input));
         let loaded = load(input, &options);
         let hash = hash
             .join()
@@ -203,11 +268,13 @@ pub fn process_scan_with_texture(
     // The file's text and the parser's arrays are gone: give their memory back before the
     // steps allocate theirs (see `memory`).
     crate::memory::release_freed();
-    let mut input_files = vec![input_hash.map_err(|e| MeshError::io(input, e))?];
+    let mut input_files = vec![input_hash?];
     for material in &mesh.materials {
-        if let Some(texture) = &material.diffuse_texture {
-            input_files
-                .push(FileHash::of(&texture.path).map_err(|e| MeshError::io(&texture.path, e))?);
+        // Each distinct file once, however many materials name it.
+        if let Some(texture) = &material.diffuse_texture
+            && !input_files.iter().any(|f| f.path == texture.path)
+        {
+            input_files.push(hash_input(&texture.path)?);
         }
     }
     if renumbers_anyway(recipe) {

@@ -18,8 +18,11 @@ pub struct FileHash {
 
 impl FileHash {
     pub fn of(path: &Path) -> std::io::Result<FileHash> {
-        use std::io::Read;
-        let mut file = std::fs::File::open(path)?;
+        FileHash::of_reader(path, std::fs::File::open(path)?)
+    }
+
+    /// The hash of what `file` (already opened, named `path`) holds.
+    pub fn of_reader(path: &Path, mut file: impl std::io::Read) -> std::io::Result<FileHash> {
         let mut hasher = Sha256::new();
         let mut buf = vec![0u8; 1 << 20];
         let mut bytes = 0u64;

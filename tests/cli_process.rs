@@ -273,7 +273,7 @@ fn bad_inputs_fail_clearly_and_leave_nothing_in_out() {
                 ("secret.png", png),
             ],
             65,
-            "leaves the scan's folder",
+            "resolves outside the scan's folder",
         ),
         (
             "PLY header lying about counts",

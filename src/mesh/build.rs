@@ -13,6 +13,7 @@
 //! line or element where they occur, and `finish` checks indices again as a safety net.
 
 use super::error::{Location, MeshError, Result};
+use super::limits::InputLimits;
 use super::model::{Index, Material, Mesh, Wedge};
 use super::wedges::WedgeInterner;
 use glam::{DVec2, DVec3};
@@ -43,6 +44,9 @@ pub struct LoadOptions {
     /// materials create one material, `scanmill_texture`, with this diffuse texture; when the
     /// file does declare materials the override is ignored (with a warning).
     pub texture_override: Option<PathBuf>,
+    /// How much the scan may make the readers read, decompress and decode (every reader
+    /// sees these; `process` and `inspect` use the defaults, the daemon its `[limits]`).
+    pub limits: InputLimits,
 }
 
 impl Default for LoadOptions {
@@ -51,6 +55,7 @@ impl Default for LoadOptions {
             weld_tolerance: 0.0,
             check_textures: true,
             texture_override: None,
+            limits: InputLimits::default(),
         }
     }
 }
@@ -79,6 +84,9 @@ pub struct LoadReport {
     pub dropped_unreferenced_vertices: usize,
     /// Elements and properties skipped because scanmill does not use them.
     pub skipped: Vec<String>,
+    /// Texture images decoded to check them: one per distinct file, however many
+    /// materials name it.
+    pub decoded_textures: usize,
 }
 
 /// What the repair rules decided for one face.

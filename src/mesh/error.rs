@@ -1,6 +1,8 @@
 //! Typed errors for reading and writing meshes. Every error names the file and, where it
 //! can, the line or element index and the offending value.
 
+use super::files::SpecialKind;
+use super::limits::Limit;
 use std::fmt;
 use std::path::PathBuf;
 
@@ -62,8 +64,35 @@ pub enum MeshError {
         texture: String,
         message: String,
     },
-    #[error("{path}: texture path {texture:?} leaves the scan's folder; refusing to read it")]
-    PathEscapes { path: PathBuf, texture: String },
+    /// A file the scan names (`mtllib`, `map_*`, PLY `TextureFile`) that lies outside the
+    /// scan's folder once `..` and symlinks are resolved; `resolved` is where it leads.
+    #[error(
+        "{path}: texture path {texture:?} resolves outside the scan's folder ({resolved}); refusing"
+    )]
+    PathEscapes {
+        path: PathBuf,
+        texture: String,
+        resolved: PathBuf,
+    },
+    /// A FIFO, device, socket or folder where a file was expected; never opened for reading.
+    #[error("{path} is {kind}; refusing to read it")]
+    SpecialFile { path: PathBuf, kind: SpecialKind },
+    /// The input is above one of the configured [`InputLimits`](super::limits::InputLimits).
+    #[error("{path}: {what} exceeds {limit} = {value}")]
+    TooLarge {
+        path: PathBuf,
+        what: String,
+        limit: Limit,
+        value: u64,
+    },
+    /// Writing an output file failed (full disk, permissions, ...): the output's fault, not
+    /// the input's.
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     /// `reason` says why, e.g. "the file has no face element" or which repair rules dropped
     /// every face.
     #[error("{path}: the file holds no usable triangles: {reason}")]
@@ -75,6 +104,13 @@ pub enum MeshError {
 impl MeshError {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         MeshError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    pub fn write(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        MeshError::Write {
             path: path.into(),
             source,
         }

@@ -1,11 +1,13 @@
 //! Loading and saving by file name: the extension picks the format; `.gz` is unpacked
-//! transparently on load.
+//! transparently on load, within `limits.max_decompressed_bytes` and `limits.max_gzip_ratio`.
 //!
 //! Writers write to the path they are given; publishing atomically (temporary name, then
 //! rename) is the caller's job.
 
 use super::build::{LoadOptions, LoadReport};
 use super::error::{Location, MeshError, Result};
+use super::files;
+use super::limits::{InputLimits, Limit};
 use super::model::Mesh;
 use super::obj;
 use super::ply::{self, PlyEncoding};
@@ -35,13 +37,15 @@ pub fn format_of(path: &Path) -> Option<(Format, bool)> {
     Some((format, gz))
 }
 
-/// Reads a mesh file (`.obj`, `.ply`, either optionally `.gz`).
+/// Reads a mesh file (`.obj`, `.ply`, either optionally `.gz`). Only a regular file is
+/// read (a FIFO or device is refused at once), within `options.limits`.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
     let (format, gz) = format_of(path).ok_or_else(|| MeshError::UnknownFormat {
         path: path.to_path_buf(),
     })?;
-    let raw = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    let bytes = if gz { gunzip(path, &raw)? } else { raw };
+    let limits = &options.limits;
+    let raw = files::read_whole(path, limits.max_file_bytes, Limit::FileBytes)?;
+    let bytes = if gz { gunzip(path, &raw, limits)? } else { raw };
     match format {
         Format::Obj => {
             // The text of a large OBJ is bigger than the mesh: free it before welding.
@@ -53,9 +57,20 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
     }
 }
 
-fn gunzip(path: &Path, compressed: &[u8]) -> Result<Vec<u8>> {
-    let mut bytes = Vec::with_capacity(compressed.len() * 4);
+/// Decompresses within the smaller of `limits.max_decompressed_bytes` and
+/// `limits.max_gzip_ratio` times the compressed size, stopping one byte past it: a small
+/// file that expands enormously costs no more than the limit.
+fn gunzip(path: &Path, compressed: &[u8], limits: &InputLimits) -> Result<Vec<u8>> {
+    let by_ratio = (compressed.len() as u64).saturating_mul(limits.max_gzip_ratio);
+    let (cap, limit) = if by_ratio < limits.max_decompressed_bytes {
+        (by_ratio, Limit::GzipRatio)
+    } else {
+        (limits.max_decompressed_bytes, Limit::DecompressedBytes)
+    };
+    // Mesh files compress 2-4 times; the reservation never exceeds the cap.
+    let mut bytes = Vec::with_capacity((compressed.len() as u64 * 4).min(cap) as usize);
     flate2::read::MultiGzDecoder::new(compressed)
+        .take(cap.saturating_add(1))
         .read_to_end(&mut bytes)
         .map_err(|e| {
             MeshError::malformed(
@@ -64,6 +79,17 @@ fn gunzip(path: &Path, compressed: &[u8]) -> Result<Vec<u8>> {
                 format!("not a valid gzip file (corrupt or truncated): {e}"),
             )
         })?;
+    if bytes.len() as u64 > cap {
+        let what = match limit {
+            Limit::GzipRatio => format!(
+                "decompressed size (above {cap} bytes, {}× the {} compressed bytes)",
+                limits.max_gzip_ratio,
+                compressed.len()
+            ),
+            _ => "decompressed size".to_string(),
+        };
+        return Err(files::too_large(path, what, limit, limit.value(limits)));
+    }
     Ok(bytes)
 }
 
@@ -76,9 +102,23 @@ pub struct SaveOptions {
 /// Writes a mesh in the format its extension names (`.obj` with its MTL and textures, or
 /// `.ply`). Returns every file written. Compressed output is not supported.
 pub fn save(mesh: &Mesh, path: &Path, options: &SaveOptions) -> Result<Vec<PathBuf>> {
+    save_reserving(mesh, path, options, &[])
+}
+
+/// [`save`], keeping the names of copied textures apart from `reserved`: files the caller
+/// writes into the same folder (a preview, a sidecar), which no copy may ever overwrite.
+/// A failure to write is [`MeshError::Write`].
+pub fn save_reserving(
+    mesh: &Mesh,
+    path: &Path,
+    options: &SaveOptions,
+    reserved: &[String],
+) -> Result<Vec<PathBuf>> {
     match format_of(path) {
-        Some((Format::Obj, false)) => obj::write(mesh, path),
-        Some((Format::Ply, false)) => ply::write(mesh, path, options.ply_encoding),
+        Some((Format::Obj, false)) => obj::write_reserving(mesh, path, reserved),
+        Some((Format::Ply, false)) => {
+            ply::write_reserving(mesh, path, options.ply_encoding, reserved)
+        }
         _ => Err(MeshError::UnknownFormat {
             path: path.to_path_buf(),
         }),

@@ -3,7 +3,9 @@
 pub mod build;
 pub mod compact;
 pub mod error;
+pub mod files;
 pub mod io;
+pub mod limits;
 pub mod model;
 pub mod mtl;
 pub mod obj;
@@ -17,7 +19,8 @@ pub mod wedges;
 
 pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};
-pub use io::{SaveOptions, load, save};
-pub use model::{Index, Material, Mesh, Texture, Wedge};
+pub use io::{SaveOptions, load, save, save_reserving};
+pub use limits::InputLimits;
+pub use model::{Index, MapFile, Material, Mesh, Texture, Wedge};
 pub use summary::MeshSummary;
 pub use topology::{BoundaryChain, EdgeKind, OrderedRing, RingBuffers, Topology, TopologyCounts};

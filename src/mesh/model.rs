@@ -22,12 +22,24 @@ pub struct Wedge {
 /// A texture image referenced by a material.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Texture {
-    /// The name as the MTL wrote it (relative to the MTL's folder), used again on output.
+    /// The name as the scan wrote it (normalised, relative to the MTL's folder): the wish
+    /// for the copy's name on output, never used to find the file again.
     pub name: String,
-    /// The resolved file on disk (inside the scan's folder).
+    /// The file on disk: for a loaded scan, resolved (symlinks included) and checked to be
+    /// inside the scan's folder when it was loaded. Writers copy exactly this file.
     pub path: PathBuf,
     /// Pixel size, known after the image decoded (`None` if not checked).
     pub size: Option<(u32, u32)>,
+}
+
+/// A file named by one of a material's `other_statements` (`map_Bump`, `bump`, `disp`, ...),
+/// resolved and checked when the MTL was loaded.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MapFile {
+    /// Index of the statement in `Material::other_statements`.
+    pub statement: usize,
+    /// The file (resolved, inside the scan's folder). Writers copy exactly this file.
+    pub path: PathBuf,
 }
 
 /// A material: its name, its diffuse texture if any, and the MTL statements we do not
@@ -36,12 +48,13 @@ pub struct Texture {
 pub struct Material {
     pub name: String,
     pub diffuse_texture: Option<Texture>,
-    /// Every other statement of the `newmtl` block, verbatim (e.g. `Kd 1 1 1`, `map_Bump n.png`).
+    /// Every other statement of the `newmtl` block, verbatim except that file names are
+    /// normalised (e.g. `Kd 1 1 1`, `map_Bump n.png`).
     pub other_statements: Vec<String>,
-    /// The folder of the MTL the material was read from: relative file names in
-    /// `other_statements` (`map_Bump`, `bump`, ...) resolve against it when a writer copies
-    /// them. `None` for materials a reader made up.
-    pub source_dir: Option<PathBuf>,
+    /// The files the map statements among `other_statements` name. A map statement without
+    /// an entry here (a material a program made up) is written as it is and nothing is
+    /// copied for it.
+    pub map_files: Vec<MapFile>,
 }
 
 /// The mesh. Positions, texture coordinates and normals are separate arrays, as in an OBJ;

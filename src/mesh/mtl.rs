@@ -1,18 +1,21 @@
 //! MTL material libraries: `newmtl` blocks, their `map_Kd` texture, and every other
-//! statement kept verbatim so that it is written back unchanged.
+//! statement kept verbatim (file names normalised) so that it is written back unchanged.
 
 use super::error::{Location, MeshError, Result};
-use super::model::{Material, Texture};
-use super::texture::{self, is_map_statement, split_map_arguments};
+use super::files;
+use super::limits::{InputLimits, Limit};
+use super::model::{MapFile, Material, Texture};
+use super::texture::{self, is_map_statement, normalise_name, split_map_arguments};
 use std::path::Path;
 
 /// A material as the MTL states it, before its files are resolved.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MtlMaterial {
     pub name: String,
-    /// The `map_Kd` file name (options stripped) and the line it is on.
+    /// The `map_Kd` file name (options stripped, normalised) and the line it is on.
     pub diffuse: Option<(String, u64)>,
-    /// Every other statement, trimmed, in order; comments and blank lines are dropped.
+    /// Every other statement, trimmed, in order; comments and blank lines are dropped. The
+    /// file name of a map statement is normalised ([`normalise_name`]).
     pub other_statements: Vec<String>,
     /// Line of `newmtl`.
     pub line: u64,
@@ -92,51 +95,82 @@ pub fn parse(mtl_path: &Path, bytes: &[u8]) -> Result<Vec<MtlMaterial>> {
                     current.name
                 );
             }
-            current.diffuse = Some((file.to_string(), pending_line));
+            current.diffuse = Some((normalise_name(file), pending_line));
         } else {
-            current.other_statements.push(statement.to_string());
+            current
+                .other_statements
+                .push(normalised_statement(keyword, args, statement));
         }
     }
     Ok(materials)
 }
 
-/// Reads an MTL file, resolves its texture files inside the scan folder (`scan_dir`,
-/// canonical) and returns its materials in MTL order. Image checks are left to the caller
-/// (they run in parallel over all textures).
-pub fn load(mtl_path: &Path, scan_dir: &Path) -> Result<Vec<Material>> {
-    let bytes = std::fs::read(mtl_path).map_err(|e| MeshError::io(mtl_path, e))?;
+/// A statement as kept: a map statement with its file name normalised, anything else as
+/// written.
+fn normalised_statement(keyword: &str, args: &str, statement: &str) -> String {
+    if !is_map_statement(keyword) {
+        return statement.to_string();
+    }
+    let (options, file) = split_map_arguments(args);
+    if file.is_empty() || !file.contains('\\') {
+        return statement.to_string();
+    }
+    let options = if options.is_empty() {
+        String::new()
+    } else {
+        format!("{options} ")
+    };
+    format!("{keyword} {options}{}", normalise_name(file))
+}
+
+/// The keyword and the file name of a map statement (`None` for other statements and for
+/// map statements without a file).
+pub fn map_file_of(statement: &str) -> Option<(&str, &str, &str)> {
+    let (keyword, args) = match statement.find(char::is_whitespace) {
+        Some(k) => (&statement[..k], statement[k..].trim()),
+        None => (statement, ""),
+    };
+    if !is_map_statement(keyword) {
+        return None;
+    }
+    let (options, file) = split_map_arguments(args);
+    (!file.is_empty()).then_some((keyword, options, file))
+}
+
+/// Reads an MTL file (the resolved path; within `limits.max_mtl_bytes`), resolves its files
+/// inside the scan folder (`scan_dir`, canonical) and returns its materials in MTL order,
+/// every file they name resolved. Image checks are left to the caller (each distinct image
+/// is decoded once, within the job's pixel budget).
+pub fn load(mtl_path: &Path, scan_dir: &Path, limits: &InputLimits) -> Result<Vec<Material>> {
+    let bytes = files::read_whole(mtl_path, limits.max_mtl_bytes, Limit::MtlBytes)?;
     let base_dir = texture::folder_of(mtl_path);
+    let cap = (limits.max_file_bytes, Limit::FileBytes);
+    let resolve = |name: &str| texture::resolve_in_scan(scan_dir, &base_dir, name, mtl_path, cap);
     let mut out = Vec::new();
     for m in parse(mtl_path, &bytes)? {
         let diffuse_texture = match &m.diffuse {
-            Some((name, _line)) => {
-                let resolved = texture::resolve_in_scan(scan_dir, &base_dir, name, mtl_path)?;
-                Some(Texture {
-                    name: name.clone(),
-                    path: resolved.path,
-                    size: None,
-                })
-            }
+            Some((name, _line)) => Some(Texture {
+                name: name.clone(),
+                path: resolve(name)?.path,
+                size: None,
+            }),
             None => None,
         };
         // Other maps are copied on output, so they must exist and stay inside too.
-        for statement in &m.other_statements {
-            let (keyword, args) = match statement.find(char::is_whitespace) {
-                Some(k) => (&statement[..k], statement[k..].trim()),
-                None => (statement.as_str(), ""),
-            };
-            if is_map_statement(keyword) {
-                let (_, file) = split_map_arguments(args);
-                if !file.is_empty() {
-                    texture::resolve_in_scan(scan_dir, &base_dir, file, mtl_path)?;
-                }
+        let mut map_files = Vec::new();
+        for (statement, text) in m.other_statements.iter().enumerate() {
+            if let Some((_, _, file)) = map_file_of(text) {
+                map_files.push(MapFile {
+                    statement,
+                    path: resolve(file)?.path,
+                });
             }
         }
         out.push(Material {
             name: m.name,
             diffuse_texture,
             other_statements: m.other_statements,
-            source_dir: Some(base_dir.clone()),
+            map_files,
         });
     }
     Ok(out)
@@ -156,6 +190,21 @@ mod tests {
         assert_eq!(m[0].diffuse, Some(("my tex.png".to_string(), 4)));
         assert_eq!(m[1].other_statements, vec!["map_Bump n.png", "illum   2"]);
         assert_eq!(m[1].diffuse, None);
+    }
+
+    #[test]
+    fn backslashes_are_separators_decided_at_parse() {
+        let text = b"newmtl a\nmap_Kd tex\\skin.png\nmap_Bump -bm 0.5 ..\\..\\etc\\passwd\n";
+        let m = parse(Path::new("x.mtl"), text).unwrap();
+        assert_eq!(m[0].diffuse, Some(("tex/skin.png".to_string(), 2)));
+        assert_eq!(
+            m[0].other_statements,
+            vec!["map_Bump -bm 0.5 ../../etc/passwd"]
+        );
+        assert_eq!(
+            map_file_of(&m[0].other_statements[0]),
+            Some(("map_Bump", "-bm 0.5", "../../etc/passwd"))
+        );
     }
 
     #[test]

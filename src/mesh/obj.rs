@@ -27,6 +27,8 @@
 
 use super::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 use super::error::{Location, MeshError, Result};
+use super::files;
+use super::limits::{InputLimits, Limit};
 use super::model::{Index, Material, Mesh, Texture};
 use super::{mtl, texture};
 use glam::{DVec2, DVec3};
@@ -85,7 +87,8 @@ pub fn parse(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<MeshBui
     }
     let (mut materials, referrers, face_materials) = assign_materials(path, &geometry, options)?;
     if options.check_textures {
-        check_textures(&mut materials, &referrers)?;
+        builder.report.decoded_textures =
+            check_textures(&mut materials, &referrers, &options.limits)?;
     }
     let colors_complete =
         !geometry.positions.is_empty() && geometry.colors.len() == geometry.positions.len();
@@ -127,7 +130,7 @@ struct Geometry {
     triangulated: usize,
     /// `(first face, material name)` for every `usemtl`, in file order.
     usemtl: Vec<(usize, String)>,
-    /// `(line, name)` for every `mtllib` name, in file order.
+    /// `(line, argument)` for every `mtllib` statement (normalised), in file order.
     mtllibs: Vec<(u64, String)>,
     skipped: BTreeMap<String, usize>,
 }
@@ -476,7 +479,9 @@ impl Chunk<'_> {
                 if names.is_empty() {
                     return Err(self.malformed(line_no, "mtllib without a file name"));
                 }
-                self.out.mtllibs.push((line_no, names));
+                self.out
+                    .mtllibs
+                    .push((line_no, texture::normalise_name(&names)));
                 Ok(())
             }
             b"o" | b"g" | b"s" | b"mg" => Ok(()),
@@ -806,14 +811,16 @@ fn assign_materials(path: &Path, g: &Geometry, options: &LoadOptions) -> Result<
     let mut referrers: Vec<PathBuf> = Vec::new();
     let mut by_name: HashMap<String, Index> = HashMap::new();
     let mut seen_libraries: Vec<PathBuf> = Vec::new();
+    let limits = &options.limits;
+    let cap = (limits.max_mtl_bytes, Limit::MtlBytes);
     for (line, argument) in &g.mtllibs {
         for name in mtllib_names(&obj_dir, argument) {
-            let resolved = texture::resolve_in_scan(&scan_dir, &obj_dir, &name, path)
+            let resolved = texture::resolve_in_scan(&scan_dir, &obj_dir, &name, path, cap)
                 .map_err(|e| mtl_missing(path, *line, &obj_dir.join(&name), e))?;
             if seen_libraries.contains(&resolved.path) {
                 continue;
             }
-            for m in mtl::load(&resolved.path, &scan_dir)? {
+            for m in mtl::load(&resolved.path, &scan_dir, limits)? {
                 if by_name.contains_key(&m.name) {
                     tracing::warn!(
                         "{}: material {:?} defined again; the first definition is used",
@@ -844,7 +851,7 @@ fn assign_materials(path: &Path, g: &Geometry, options: &LoadOptions) -> Result<
                         size: None,
                     }),
                     other_statements: Vec::new(),
-                    source_dir: None,
+                    map_files: Vec::new(),
                 };
                 if !texture_path.is_file() {
                     return Err(MeshError::Texture {
@@ -917,38 +924,52 @@ fn mtl_missing(obj: &Path, line: u64, looked: &Path, e: MeshError) -> MeshError 
     }
 }
 
-/// Decodes every diffuse texture (in parallel) and stores its size; the first failure in
-/// material order is the error, naming the texture and the MTL (`referrers`).
-fn check_textures(materials: &mut [Material], referrers: &[PathBuf]) -> Result<()> {
-    let sizes: Vec<Result<Option<(u32, u32)>>> = materials
-        .par_iter()
-        .zip(referrers.par_iter())
-        .map(|(m, referrer)| {
-            m.diffuse_texture
-                .as_ref()
-                .map(|t| texture::check_image(&t.path, &t.name, referrer))
-                .transpose()
+/// Decodes every distinct diffuse texture once, within the job's pixel budget, and stores
+/// each material's size; the first failure in material order is the error, naming the
+/// texture and the MTL (`referrers`). Returns how many images were decoded.
+fn check_textures(
+    materials: &mut [Material],
+    referrers: &[PathBuf],
+    limits: &InputLimits,
+) -> Result<usize> {
+    let images: Vec<texture::ImageRef> = materials
+        .iter()
+        .zip(referrers)
+        .filter_map(|(m, referrer)| {
+            m.diffuse_texture.as_ref().map(|t| texture::ImageRef {
+                path: &t.path,
+                name: &t.name,
+                referrer,
+            })
         })
         .collect();
-    for (m, size) in materials.iter_mut().zip(sizes) {
+    let checked = texture::check_images(&images, limits)?;
+    for m in materials.iter_mut() {
         if let Some(t) = &mut m.diffuse_texture {
-            t.size = size?;
+            t.size = checked.sizes.get(&t.path).copied();
         }
     }
-    Ok(())
+    Ok(checked.decoded)
 }
 
 // ---------------------------------------------------------------------------------------
 // Writing
 
+/// Writes `mesh` as an OBJ at `obj_path`: [`write_reserving`] with nothing reserved.
+pub fn write(mesh: &Mesh, obj_path: &Path) -> Result<Vec<PathBuf>> {
+    write_reserving(mesh, obj_path, &[])
+}
+
 /// Writes `mesh` as an OBJ at `obj_path`, with `<stem>.mtl` beside it when the mesh has
-/// materials, and copies of the texture and map files (under their original relative
-/// names, kept inside the output folder). Returns every file written, the OBJ first.
+/// materials, and copies of the texture and map files. The copies' names are chosen here
+/// ([`texture::OutputNames`]): the scan's names, sanitised, kept apart from the OBJ, the MTL
+/// and every name in `reserved` (files the caller writes beside, such as a preview).
+/// Returns every file written, the OBJ first.
 ///
 /// Positions, texture coordinates and normals are written in the shortest form that reads
 /// back to the same `f64` (ryu), so a write/read round trip is bit-exact. Face order is
 /// kept; `usemtl` is written where the material changes.
-pub fn write(mesh: &Mesh, obj_path: &Path) -> Result<Vec<PathBuf>> {
+pub fn write_reserving(mesh: &Mesh, obj_path: &Path, reserved: &[String]) -> Result<Vec<PathBuf>> {
     let out_dir = texture::folder_of(obj_path);
     let stem = obj_path
         .file_stem()
@@ -963,7 +984,11 @@ pub fn write(mesh: &Mesh, obj_path: &Path) -> Result<Vec<PathBuf>> {
 
     let mut written = vec![obj_path.to_path_buf()];
     let plan = if has_materials {
-        Some(plan_material_files(mesh, &obj_name, &mtl_name)?)
+        let mut names = texture::OutputNames::default();
+        for name in [&obj_name, &mtl_name].into_iter().chain(reserved) {
+            names.reserve(name);
+        }
+        Some(plan_material_files(mesh, names))
     } else {
         None
     };
@@ -971,7 +996,7 @@ pub fn write(mesh: &Mesh, obj_path: &Path) -> Result<Vec<PathBuf>> {
     if let Some(plan) = plan {
         let mtl_path = out_dir.join(&mtl_name);
         std::fs::write(&mtl_path, plan.mtl_text.as_bytes())
-            .map_err(|e| MeshError::io(&mtl_path, e))?;
+            .map_err(|e| MeshError::write(&mtl_path, e))?;
         written.push(mtl_path);
         for (source, name) in plan.copies {
             let target = out_dir.join(&name);
@@ -988,19 +1013,12 @@ struct MaterialFiles {
     copies: Vec<(PathBuf, String)>,
 }
 
-fn plan_material_files(mesh: &Mesh, obj_name: &str, mtl_name: &str) -> Result<MaterialFiles> {
-    let mut names = texture::OutputNames::default();
-    names.reserve(obj_name);
-    names.reserve(mtl_name);
+/// The output MTL and the files to copy. Map statements name the file the loader resolved
+/// (`Material::map_files`), never a file found again from the statement's text.
+fn plan_material_files(mesh: &Mesh, mut names: texture::OutputNames) -> MaterialFiles {
     let mut copies: Vec<(PathBuf, String)> = Vec::new();
     let mut add_copy = |source: &Path, wanted: &str, copies: &mut Vec<(PathBuf, String)>| {
-        let wanted = texture::sanitise_output_name(wanted).unwrap_or_else(|| {
-            source
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "texture".into())
-        });
-        let name = names.name_for(&wanted, source);
+        let name = names.name_for(wanted, source);
         if !copies.iter().any(|(_, n)| *n == name) {
             copies.push((source.to_path_buf(), name.clone()));
         }
@@ -1011,40 +1029,22 @@ fn plan_material_files(mesh: &Mesh, obj_name: &str, mtl_name: &str) -> Result<Ma
         text.push_str("\nnewmtl ");
         text.push_str(&m.name);
         text.push('\n');
-        for statement in &m.other_statements {
-            let (keyword, args) = match statement.find(char::is_whitespace) {
-                Some(k) => (&statement[..k], statement[k..].trim()),
-                None => (statement.as_str(), ""),
-            };
-            let (options, file) = texture::split_map_arguments(args);
-            if !texture::is_map_statement(keyword) || file.is_empty() {
+        for (i, statement) in m.other_statements.iter().enumerate() {
+            let Some((keyword, options, file)) = mtl::map_file_of(statement) else {
                 text.push_str(statement);
                 text.push('\n');
                 continue;
-            }
-            let Some(dir) = &m.source_dir else {
+            };
+            let Some(source) = m.map_files.iter().find(|f| f.statement == i) else {
                 tracing::warn!(
-                    "material {:?}: {keyword} {file:?} has no known folder; written as is, not copied",
+                    "material {:?}: {keyword} {file:?} was not loaded from a file; written as is, not copied",
                     m.name
                 );
                 text.push_str(statement);
                 text.push('\n');
                 continue;
             };
-            let source = dir.join(file.replace('\\', "/"));
-            let source = if source.is_file() {
-                source
-            } else {
-                dir.join(file)
-            };
-            if !source.is_file() {
-                return Err(MeshError::Texture {
-                    path: dir.clone(),
-                    texture: file.to_string(),
-                    message: format!("map of material {:?} no longer exists", m.name),
-                });
-            }
-            let name = add_copy(&source, file, &mut copies);
+            let name = add_copy(&source.path, file, &mut copies);
             text.push_str(keyword);
             text.push(' ');
             if !options.is_empty() {
@@ -1061,25 +1061,38 @@ fn plan_material_files(mesh: &Mesh, obj_name: &str, mtl_name: &str) -> Result<Ma
             text.push('\n');
         }
     }
-    Ok(MaterialFiles {
+    MaterialFiles {
         mtl_text: text,
         copies,
-    })
+    }
 }
 
-/// Copies `source` to `target`, unless they are the same file (writing over the input's
-/// own folder), creating sub-folders as needed.
-fn copy_file(source: &Path, target: &Path) -> Result<()> {
+/// Copies `source` (a file the loader resolved) to `target`, unless they are the same file
+/// (writing over the input's own folder), creating sub-folders as needed. Reading the source
+/// fails as an input error, writing the copy as an output error ([`MeshError::Write`]).
+pub fn copy_file(source: &Path, target: &Path) -> Result<()> {
     if let (Ok(a), Ok(b)) = (source.canonicalize(), target.canonicalize())
         && a == b
     {
         return Ok(());
     }
     if let Some(parent) = target.parent() {
-        std::fs::create_dir_all(parent).map_err(|e| MeshError::io(parent, e))?;
+        std::fs::create_dir_all(parent).map_err(|e| MeshError::write(parent, e))?;
     }
-    std::fs::copy(source, target).map_err(|e| MeshError::io(target, e))?;
-    Ok(())
+    let (mut from, _) = files::open_regular(source)?;
+    let mut to = std::fs::File::create(target).map_err(|e| MeshError::write(target, e))?;
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = match std::io::Read::read(&mut from, &mut buf) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(MeshError::io(source, e)),
+        };
+        to.write_all(&buf[..n])
+            .map_err(|e| MeshError::write(target, e))?;
+    }
+    to.flush().map_err(|e| MeshError::write(target, e))
 }
 
 /// Buffered output with hand formatting (ryu, itoa): `write!` per number is several times
@@ -1128,7 +1141,7 @@ impl Out {
 }
 
 fn write_obj_file(mesh: &Mesh, obj_path: &Path, mtl_name: Option<&str>) -> Result<()> {
-    let file = std::fs::File::create(obj_path).map_err(|e| MeshError::io(obj_path, e))?;
+    let file = std::fs::File::create(obj_path).map_err(|e| MeshError::write(obj_path, e))?;
     let mut out = Out {
         file,
         buf: Vec::with_capacity(OUT_BUFFER + 4096),
@@ -1137,7 +1150,7 @@ fn write_obj_file(mesh: &Mesh, obj_path: &Path, mtl_name: Option<&str>) -> Resul
     };
     write_obj_body(mesh, mtl_name, &mut out)
         .and_then(|()| out.finish())
-        .map_err(|e| MeshError::io(obj_path, e))
+        .map_err(|e| MeshError::write(obj_path, e))
 }
 
 fn write_obj_body(mesh: &Mesh, mtl_name: Option<&str>, out: &mut Out) -> std::io::Result<()> {

@@ -1,22 +1,41 @@
-//! Texture files: resolving the names an MTL gives, refusing paths that leave the scan's
-//! folder, checking that images decode, and choosing safe names for copies on output.
+//! Texture files: resolving the names a scan gives, refusing paths that leave the scan's
+//! folder, checking that images decode within the job's pixel budget, and choosing safe
+//! names for copies on output.
 //!
-//! Checking an image (when `LoadOptions::check_textures`): the header gives the size, then
-//! the whole image is decoded. A full decode costs 4–160 ms per image on the lab's data
-//! (1024² PNG 4 ms, 4096² PNG 86 ms, 4096² JPEG 160 ms, release, one core) and catches
-//! corrupt compressed data, which a header read does not. The JPEG decoder is lenient: it
-//! decodes a JPEG cut in half without complaint (grey bottom half), so a JPEG must also
-//! end its scan data with an EOI marker; a PNG cut short fails to decode.
+//! Names: every file name a scan writes (OBJ `mtllib`, MTL `map_*`/`bump`/`disp`/...,
+//! PLY `comment TextureFile`) goes through [`normalise_name`] once, where it is parsed, and
+//! through [`resolve_in_scan`] once, when it is loaded; the model keeps the resolved path and
+//! writers copy exactly that file.
+//!
+//! Checking an image (when `LoadOptions::check_textures`): the header gives the size, which
+//! is checked against the job's pixel budget before anything is decoded; then the whole image
+//! is decoded, once per distinct file however many materials name it. A full decode costs
+//! 4–160 ms per image on the lab's data and catches corrupt compressed data, which a header
+//! read does not. The JPEG decoder is lenient: it decodes a JPEG cut in half without
+//! complaint (grey bottom half), so a JPEG must also end its scan data with an EOI marker; a
+//! PNG cut short fails to decode.
 
 use super::error::{MeshError, Result};
-use std::collections::BTreeMap;
+use super::files;
+use super::limits::{InputLimits, Limit};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Component, Path, PathBuf};
 
-/// A file name found in an MTL, resolved against the scan's folder.
+/// A file name found in a scan, resolved inside the scan's folder.
 #[derive(Debug, Clone)]
 pub struct ResolvedFile {
-    /// The file to read (inside the scan's folder, lexically normalised, not canonical).
+    /// The file to read: canonical (symlinks resolved), inside the scan's folder, a regular
+    /// file within its size cap when it was checked.
     pub path: PathBuf,
+}
+
+/// The one rule for file names written in a scan's files, applied where they are parsed:
+/// `\` is a folder separator. Scans exported on Windows write `tex\a.png`; a Unix file name
+/// with a literal backslash is far rarer, and deciding the meaning of `\` once is what keeps
+/// the name that is checked and the file that is later copied the same.
+pub fn normalise_name(raw: &str) -> String {
+    raw.replace('\\', "/")
 }
 
 /// Canonical form of the scan's folder (the folder of the OBJ). Falls back to the folder as
@@ -34,108 +53,233 @@ pub fn folder_of(path: &Path) -> PathBuf {
     }
 }
 
-/// Resolves `name` (as written in `referrer`, an MTL or OBJ) against `base_dir` (the
-/// referrer's folder), and checks that the result stays inside `scan_dir` (canonical):
-/// `..` that climbs out, an absolute path elsewhere, or a symlink that resolves outside are
-/// [`MeshError::PathEscapes`]. A file that does not exist is [`MeshError::Texture`].
+/// Resolves `name` (as written in `referrer`, an MTL, OBJ or PLY, already passed through
+/// [`normalise_name`]) against `base_dir` (the referrer's folder), and checks that the result
+/// stays inside `scan_dir` (canonical): `..` that climbs out, an absolute path elsewhere, or a
+/// symlink that resolves outside are [`MeshError::PathEscapes`]; a FIFO, device or folder is
+/// [`MeshError::SpecialFile`] (refused without opening it); a file above `cap` (the value of
+/// `limit`) is [`MeshError::TooLarge`]. A file that does not exist is [`MeshError::Texture`].
 pub fn resolve_in_scan(
     scan_dir: &Path,
     base_dir: &Path,
     name: &str,
     referrer: &Path,
+    (cap, limit): (u64, Limit),
 ) -> Result<ResolvedFile> {
-    let escapes = || MeshError::PathEscapes {
+    let escapes = |resolved: PathBuf| MeshError::PathEscapes {
         path: referrer.to_path_buf(),
         texture: name.to_string(),
+        resolved,
     };
     let missing = |looked: &Path| MeshError::Texture {
         path: referrer.to_path_buf(),
         texture: name.to_string(),
         message: format!("file not found (looked for {})", looked.display()),
     };
-    // Names written on Windows use `\`; a literal backslash in a Unix file name is far
-    // rarer than a Windows-exported MTL, so `\` is a separator unless the literal exists.
-    let literal = base_dir.join(name);
-    let name_path = if name.contains('\\') && !literal.exists() {
-        PathBuf::from(name.replace('\\', "/"))
-    } else {
-        PathBuf::from(name)
-    };
-    let candidate = if name_path.is_absolute() {
-        let lexical = normalise(&name_path).ok_or_else(escapes)?;
-        // Lexical check first, so that a path elsewhere is refused whether or not it exists.
-        let real = lexical.canonicalize().unwrap_or_else(|_| lexical.clone());
-        if !real.starts_with(scan_dir) {
-            return Err(escapes());
-        }
-        lexical
-    } else {
-        // Work relative to the scan folder, so that `..` is judged lexically, whether or
-        // not the file exists, and however the folder itself was named (symlinks, `./`).
-        let base_real = base_dir.canonicalize().map_err(|_| missing(&literal))?;
-        let base_rel = base_real.strip_prefix(scan_dir).map_err(|_| escapes())?;
-        let rel = normalise(&base_rel.join(&name_path)).ok_or_else(escapes)?;
-        scan_dir.join(rel)
-    };
-    if !candidate.is_file() {
-        return Err(missing(&candidate));
+    let name_path = Path::new(name);
+    // Where the name leads before symlinks, for the lexical check and for messages.
+    let base_real = base_dir
+        .canonicalize()
+        .map_err(|_| missing(&base_dir.join(name_path)))?;
+    let joined = base_real.join(name_path);
+    let lexical = normalise(&joined).ok_or_else(|| escapes(joined.clone()))?;
+    // Lexical check first, so that a path elsewhere is refused whether or not it exists.
+    if !lexical.starts_with(scan_dir) {
+        return Err(escapes(lexical));
     }
     // Symlinks: the real file must be inside the real scan folder.
-    let real = candidate.canonicalize().map_err(|_| missing(&candidate))?;
+    let real = lexical.canonicalize().map_err(|_| missing(&lexical))?;
     if !real.starts_with(scan_dir) {
-        return Err(escapes());
+        return Err(escapes(real));
     }
-    Ok(ResolvedFile { path: candidate })
+    let meta = std::fs::metadata(&real).map_err(|_| missing(&real))?;
+    if let Some(kind) = files::special_kind(&meta) {
+        return Err(MeshError::SpecialFile { path: real, kind });
+    }
+    if meta.len() > cap {
+        return Err(files::too_large(
+            &real,
+            format!("file size {} bytes", meta.len()),
+            limit,
+            cap,
+        ));
+    }
+    Ok(ResolvedFile { path: real })
 }
 
-/// Lexical normalisation: drops `.`, applies `..`. `None` if `..` climbs above the start
-/// (the root of an absolute path, the beginning of a relative one).
+/// Lexical normalisation: drops `.`, applies `..` (which stays at the root of an absolute
+/// path, as the file system does). `None` if `..` climbs above the beginning of a relative
+/// path.
 fn normalise(path: &Path) -> Option<PathBuf> {
     let mut out = PathBuf::new();
     for c in path.components() {
         match c {
             Component::Prefix(_) | Component::RootDir => out.push(c.as_os_str()),
             Component::CurDir => {}
-            Component::ParentDir => {
-                if !matches!(out.components().next_back(), Some(Component::Normal(_))) || !out.pop()
-                {
-                    return None;
+            Component::ParentDir => match out.components().next_back() {
+                Some(Component::Normal(_)) => {
+                    out.pop();
                 }
-            }
+                Some(Component::RootDir) => {}
+                _ => return None,
+            },
             Component::Normal(n) => out.push(n),
         }
     }
     Some(out)
 }
 
-/// Opens an image, learns its size and checks that it decodes completely (see the module
-/// comment for why a full decode). Errors name the texture and the MTL.
-pub fn check_image(path: &Path, name: &str, referrer: &Path) -> Result<(u32, u32)> {
-    let fail = |message: String| MeshError::Texture {
-        path: referrer.to_path_buf(),
-        texture: name.to_string(),
+/// One image a load wants checked: the resolved file, the name as the scan wrote it and the
+/// file that named it (for errors).
+#[derive(Debug, Clone, Copy)]
+pub struct ImageRef<'a> {
+    pub path: &'a Path,
+    pub name: &'a str,
+    pub referrer: &'a Path,
+}
+
+/// What [`check_images`] learnt: the size of every distinct image, by resolved path.
+#[derive(Debug, Default)]
+pub struct CheckedImages {
+    pub sizes: HashMap<PathBuf, (u32, u32)>,
+    /// How many images were decoded (one per distinct file).
+    pub decoded: usize,
+}
+
+/// Checks the images of one load: each distinct file (by resolved path) is read once (within
+/// `limits.max_file_bytes`), its header's pixel count added to the job's total, which must
+/// stay within `limits.max_texture_pixels` before anything is decoded; then every distinct
+/// image is decoded once, in parallel. The first failure in `images` order is the error.
+pub fn check_images(images: &[ImageRef], limits: &InputLimits) -> Result<CheckedImages> {
+    let mut distinct: Vec<ImageRef> = Vec::new();
+    for image in images {
+        if !distinct.iter().any(|d| d.path == image.path) {
+            distinct.push(*image);
+        }
+    }
+    let headers: Vec<Result<Header>> = distinct
+        .par_iter()
+        .map(|image| read_header(image, limits))
+        .collect();
+    let mut read = Vec::with_capacity(distinct.len());
+    let mut pixels = 0u64;
+    for (image, header) in distinct.iter().zip(headers) {
+        let (bytes, (w, h)) = header?;
+        pixels = pixels.saturating_add(u64::from(w) * u64::from(h));
+        if pixels > limits.max_texture_pixels {
+            return Err(files::too_large(
+                image.path,
+                format!(
+                    "texture {:?} ({w}×{h}) brings the job's decoded pixels to {pixels}, which",
+                    image.name
+                ),
+                Limit::TexturePixels,
+                limits.max_texture_pixels,
+            ));
+        }
+        read.push((image, bytes, (w, h)));
+    }
+    let decoded: Vec<Result<()>> = read
+        .par_iter()
+        .map(|(image, bytes, size)| {
+            decode_bounded(bytes, *size)
+                .map(drop)
+                .map_err(|message| image_error(image, message))
+        })
+        .collect();
+    let mut out = CheckedImages::default();
+    for ((image, _, size), result) in read.iter().zip(decoded) {
+        result?;
+        out.sizes.insert(image.path.to_path_buf(), *size);
+        out.decoded += 1;
+    }
+    Ok(out)
+}
+
+fn image_error(image: &ImageRef, message: String) -> MeshError {
+    MeshError::Texture {
+        path: image.referrer.to_path_buf(),
+        texture: image.name.to_string(),
         message,
-    };
-    let bytes =
-        std::fs::read(path).map_err(|e| fail(format!("cannot read {}: {e}", path.display())))?;
-    let reader = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
+    }
+}
+
+/// An image file's bytes and the size its header declares.
+type Header = (Vec<u8>, (u32, u32));
+
+/// Reads an image file (within `limits.max_file_bytes`) and its size from its header.
+fn read_header(image: &ImageRef, limits: &InputLimits) -> Result<Header> {
+    let bytes = files::read_whole(image.path, limits.max_file_bytes, Limit::FileBytes)?;
+    let size = image_size(&bytes).map_err(|message| image_error(image, message))?;
+    Ok((bytes, size))
+}
+
+/// An image's size from its header, without decoding it. The decoder's own allocation
+/// limit is lifted for this header read, so that a huge declared size is reported as such
+/// and judged against the pixel budget (the decode itself is bounded in [`decode_bounded`]).
+pub fn image_size(bytes: &[u8]) -> std::result::Result<(u32, u32), String> {
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
-        .map_err(|e| fail(format!("cannot read {}: {e}", path.display())))?;
-    let format = reader.format();
-    let size = reader
+        .map_err(|e| e.to_string())?;
+    reader.no_limits();
+    reader
         .into_dimensions()
-        .map_err(|e| fail(format!("not a readable image: {e}")))?;
-    if format == Some(image::ImageFormat::Jpeg) && !jpeg_has_end(&bytes) {
-        return Err(fail(
-            "JPEG ends before its end-of-image marker (file truncated?)".into(),
+        .map_err(|e| format!("not a readable image: {e}"))
+}
+
+/// Decodes an image whose header said `size`, allowing the decoder no more than that size
+/// (a header that lies about the size cannot make it allocate more). A JPEG must end with
+/// its end-of-image marker (see the module comment).
+pub fn decode_bounded(
+    bytes: &[u8],
+    (w, h): (u32, u32),
+) -> std::result::Result<image::DynamicImage, String> {
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    if reader.format() == Some(image::ImageFormat::Jpeg) && !jpeg_has_end(bytes) {
+        return Err("JPEG ends before its end-of-image marker (file truncated?)".into());
+    }
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(w);
+    limits.max_image_height = Some(h);
+    // 16-bit RGBA is the widest layout PNG and JPEG decode to; the decoders need a little
+    // working memory beside the image.
+    limits.max_alloc = Some(u64::from(w) * u64::from(h) * 8 + (64 << 20));
+    reader.limits(limits);
+    reader
+        .decode()
+        .map_err(|e| format!("image does not decode: {e}"))
+}
+
+/// Reads and decodes one image file within a pixel allowance (for users of textures after
+/// loading, such as the texture metric): the file within `limits.max_file_bytes`, its
+/// header's pixel count within `pixels_left`, which is reduced by it.
+pub fn load_image(
+    path: &Path,
+    limits: &InputLimits,
+    pixels_left: &mut u64,
+) -> Result<image::DynamicImage> {
+    let name = path.display().to_string();
+    let image = ImageRef {
+        path,
+        name: &name,
+        referrer: path,
+    };
+    let (bytes, (w, h)) = read_header(&image, limits)?;
+    let pixels = u64::from(w) * u64::from(h);
+    if pixels > *pixels_left {
+        return Err(files::too_large(
+            path,
+            format!(
+                "texture ({w}×{h}) brings the decoded pixels above what is left ({pixels_left}) of"
+            ),
+            Limit::TexturePixels,
+            limits.max_texture_pixels,
         ));
     }
-    image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
-        .with_guessed_format()
-        .map_err(|e| fail(e.to_string()))?
-        .decode()
-        .map_err(|e| fail(format!("image does not decode: {e}")))?;
-    Ok(size)
+    *pixels_left -= pixels;
+    decode_bounded(&bytes, (w, h)).map_err(|message| image_error(&image, message))
 }
 
 /// True if a JPEG's first scan is followed, somewhere, by an EOI marker (FF D9).
@@ -237,13 +381,15 @@ fn token_spans(s: &str) -> Vec<(usize, usize)> {
     spans
 }
 
-/// A name for a copied file that stays inside the output folder: `\` becomes `/`, `.` and
-/// `..` parts and any root or drive are dropped; an absolute name keeps only its file name.
-/// `None` if nothing usable remains.
+/// A name for a copied file that stays inside the output folder (the name the scan wrote,
+/// already normalised, is only a wish): `.` and `..` parts and any root or drive are
+/// dropped; an absolute name keeps only its file name; control characters and `\\` become
+/// `_` (an output MTL must stay one statement per line); a leading `-` gets a `_` before it
+/// (it would read as an option of the map statement). `None` if nothing usable remains.
+/// [`OutputNames`] then keeps the result apart from every other generated file.
 pub fn sanitise_output_name(name: &str) -> Option<String> {
-    let name = name.replace('\\', "/");
     let absolute = name.starts_with('/') || name.as_bytes().get(1) == Some(&b':');
-    let mut parts: Vec<&str> = Vec::new();
+    let mut parts: Vec<String> = Vec::new();
     for part in name.split('/') {
         match part {
             "" | "." => {}
@@ -251,62 +397,96 @@ pub fn sanitise_output_name(name: &str) -> Option<String> {
                 parts.pop();
             }
             p if p.ends_with(':') => {} // a drive, `C:`
-            p => parts.push(p),
+            p => parts.push(
+                p.chars()
+                    .map(|c| if c.is_control() || c == '\\' { '_' } else { c })
+                    .collect(),
+            ),
         }
     }
     if absolute {
-        let last = parts.last()?;
-        return Some((*last).to_string());
+        parts = parts.split_off(parts.len().saturating_sub(1));
     }
-    if parts.is_empty() {
-        None
-    } else {
-        Some(parts.join("/"))
+    let joined = parts.join("/");
+    match joined.chars().next() {
+        None => None,
+        Some('-') => Some(format!("_{joined}")),
+        Some(_) => Some(joined),
     }
 }
 
-/// Chooses output names for copied files, keeping names unique: the same source keeps one
-/// name; a different source asking for a taken name gets `stem_2.ext`, `stem_3.ext`, ...
+/// Chooses output names for copied files, keeping every generated name unique: the same
+/// source keeps one name; a different source asking for a taken name gets `stem_2.ext`,
+/// `stem_3.ext`, ...; a name whose folder would be a reserved or copied file is placed in the
+/// output folder itself. Compared lower-cased, so that case-insensitive file systems are
+/// safe too.
 #[derive(Debug, Default)]
 pub struct OutputNames {
-    /// Lower-cased name → source (so that case-insensitive file systems also stay safe).
+    /// Lower-cased file name → its source (`None` for reserved names).
     taken: BTreeMap<String, Option<PathBuf>>,
+    /// Lower-cased folders that copies create.
+    folders: BTreeSet<String>,
 }
 
 impl OutputNames {
-    /// Reserves names (the OBJ and MTL themselves) that no copy may use.
+    /// Reserves a name (the mesh and MTL themselves, a sidecar, a preview) that no copy may
+    /// use, whatever its source is called.
     pub fn reserve(&mut self, name: &str) {
         self.taken.insert(name.to_lowercase(), None);
     }
 
-    /// The output name for `source`, wanted as `wanted` (already sanitised).
+    /// The output name for `source`, wanted as `wanted` (the name the scan wrote; it is
+    /// sanitised here, see [`sanitise_output_name`]).
     pub fn name_for(&mut self, wanted: &str, source: &Path) -> String {
         let source = source
             .canonicalize()
             .unwrap_or_else(|_| source.to_path_buf());
+        let file_name = || {
+            source
+                .file_name()
+                .and_then(|n| sanitise_output_name(&n.to_string_lossy()))
+                .unwrap_or_else(|| "texture".into())
+        };
+        let mut wanted = sanitise_output_name(wanted).unwrap_or_else(file_name);
+        if !self.folders_free(&wanted) {
+            wanted = wanted
+                .rsplit('/')
+                .next()
+                .map_or_else(file_name, str::to_string);
+        }
         let (stem, ext) = match wanted.rfind('.') {
             Some(dot) if dot > wanted.rfind('/').map_or(0, |s| s + 1) => {
                 (&wanted[..dot], &wanted[dot..])
             }
-            _ => (wanted, ""),
+            _ => (wanted.as_str(), ""),
         };
         let mut n = 1;
         loop {
             let candidate = if n == 1 {
-                wanted.to_string()
+                wanted.clone()
             } else {
                 format!("{stem}_{n}{ext}")
             };
-            match self.taken.get(&candidate.to_lowercase()) {
-                None => {
-                    self.taken
-                        .insert(candidate.to_lowercase(), Some(source.clone()));
+            let key = candidate.to_lowercase();
+            match self.taken.get(&key) {
+                None if !self.folders.contains(&key) => {
+                    for (i, _) in key.match_indices('/') {
+                        self.folders.insert(key[..i].to_string());
+                    }
+                    self.taken.insert(key, Some(source.clone()));
                     return candidate;
                 }
                 Some(Some(s)) if *s == source => return candidate,
                 _ => n += 1,
             }
         }
+    }
+
+    /// Whether none of the folders of `name` is a file name already given out.
+    fn folders_free(&self, name: &str) -> bool {
+        let key = name.to_lowercase();
+        key.match_indices('/')
+            .all(|(i, _)| !self.taken.contains_key(&key[..i]))
     }
 }
 
@@ -335,15 +515,16 @@ mod tests {
         assert_eq!(sanitise_output_name("a.png").as_deref(), Some("a.png"));
         assert_eq!(sanitise_output_name("../x.png").as_deref(), Some("x.png"));
         assert_eq!(
-            sanitise_output_name("tex\\a.png").as_deref(),
-            Some("tex/a.png")
+            sanitise_output_name("tex\\a\nb.png").as_deref(),
+            Some("tex_a_b.png")
         );
+        assert_eq!(sanitise_output_name("-o").as_deref(), Some("_-o"));
         assert_eq!(
             sanitise_output_name("/etc/passwd").as_deref(),
             Some("passwd")
         );
         assert_eq!(
-            sanitise_output_name("C:\\scans\\t.jpg").as_deref(),
+            sanitise_output_name(&normalise_name("C:\\scans\\t.jpg")).as_deref(),
             Some("t.jpg")
         );
         assert_eq!(
@@ -361,6 +542,36 @@ mod tests {
         assert_eq!(names.name_for("t.png", Path::new("/a/t.png")), "t.png");
         assert_eq!(names.name_for("T.png", Path::new("/b/t.png")), "T_2.png");
         assert_eq!(names.name_for("scan.obj", Path::new("/b/x")), "scan_2.obj");
+    }
+
+    #[test]
+    fn generated_names_never_collide_with_reserved_ones() {
+        let mut names = OutputNames::default();
+        for reserved in [
+            "scan.obj",
+            "scan.mtl",
+            "scan.scanmill.json",
+            "scan.preview.png",
+        ] {
+            names.reserve(reserved);
+        }
+        let a = names.name_for("scan.scanmill.json", Path::new("/a/1"));
+        let b = names.name_for("SCAN.preview.png", Path::new("/a/2"));
+        let c = names.name_for("scan.preview.png/x.png", Path::new("/a/3"));
+        let d = names.name_for("x.png", Path::new("/a/4"));
+        let e = names.name_for("sub/y.png", Path::new("/a/5"));
+        let f = names.name_for("sub", Path::new("/a/6"));
+        assert_eq!(
+            [a, b, c, d, e, f],
+            [
+                "scan.scanmill_2.json",
+                "SCAN.preview_2.png",
+                "x.png",
+                "x_2.png",
+                "sub/y.png",
+                "sub_2"
+            ]
+        );
     }
 
     #[test]

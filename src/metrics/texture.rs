@@ -10,7 +10,7 @@
 
 use super::Summary;
 use super::surface::{Closest, SurfacePoint};
-use crate::mesh::Mesh;
+use crate::mesh::{InputLimits, Mesh, texture};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use rayon::prelude::*;
@@ -35,10 +35,19 @@ pub enum TextureDeviation {
     },
 }
 
-/// Decoded texture images by path, decoded once (RGB8), shared by later comparisons.
-#[derive(Default)]
+/// Decoded texture images by path, decoded once (RGB8), shared by later comparisons, through
+/// the loader's bounded image reader ([`texture::load_image`]): a file within
+/// `limits.max_file_bytes`, and all images together within `limits.max_texture_pixels`.
 pub struct TextureCache {
     images: HashMap<PathBuf, Result<Arc<RgbImage>, String>>,
+    limits: InputLimits,
+    pixels_left: u64,
+}
+
+impl Default for TextureCache {
+    fn default() -> Self {
+        TextureCache::with_limits(InputLimits::default())
+    }
 }
 
 impl TextureCache {
@@ -46,19 +55,25 @@ impl TextureCache {
         Self::default()
     }
 
+    /// A cache whose images stay within `limits` (the job's input limits).
+    pub fn with_limits(limits: InputLimits) -> Self {
+        TextureCache {
+            images: HashMap::new(),
+            pixels_left: limits.max_texture_pixels,
+            limits,
+        }
+    }
+
     /// The decoded image, or why it could not be read.
     pub fn get(&mut self, path: &Path) -> Result<Arc<RgbImage>, String> {
-        self.images
-            .entry(path.to_path_buf())
-            .or_insert_with(|| {
-                image::ImageReader::open(path)
-                    .map_err(|e| e.to_string())
-                    .and_then(|r| r.with_guessed_format().map_err(|e| e.to_string()))
-                    .and_then(|r| r.decode().map_err(|e| e.to_string()))
-                    .map(|img| Arc::new(img.to_rgb8()))
-                    .map_err(|e| format!("{}: {e}", path.display()))
-            })
-            .clone()
+        if let Some(known) = self.images.get(path) {
+            return known.clone();
+        }
+        let loaded = texture::load_image(path, &self.limits, &mut self.pixels_left)
+            .map(|img| Arc::new(img.to_rgb8()))
+            .map_err(|e| e.to_string());
+        self.images.insert(path.to_path_buf(), loaded.clone());
+        loaded
     }
 
     /// One image per material of `mesh` (`None` where a material has no texture).
@@ -184,7 +199,7 @@ mod tests {
                 size: None,
             }),
             other_statements: vec![],
-            source_dir: None,
+            map_files: vec![],
         });
         m
     }

@@ -79,6 +79,27 @@ impl Default for InputSpec {
     }
 }
 
+/// Largest `weld_tolerance`: a tenth of the bounding-box diagonal already merges whole
+/// features of a scan; more is a typo, not a setting.
+pub const MAX_WELD_TOLERANCE: f64 = 0.1;
+
+impl InputSpec {
+    pub fn validate(&self) -> Result<(), String> {
+        validate_weld_tolerance(self.weld_tolerance)
+    }
+}
+
+/// `weld_tolerance` must be a finite number in 0..=[`MAX_WELD_TOLERANCE`].
+pub fn validate_weld_tolerance(t: f64) -> Result<(), String> {
+    if t.is_finite() && (0.0..=MAX_WELD_TOLERANCE).contains(&t) {
+        Ok(())
+    } else {
+        Err(format!(
+            "weld_tolerance must be a fraction of the bounding-box diagonal in 0..={MAX_WELD_TOLERANCE}, not {t}"
+        ))
+    }
+}
+
 /// One processing step. The variant name is the recipe's `kind`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -311,6 +332,10 @@ impl Recipe {
         file.preview
             .validate()
             .map_err(|message| parse_error(line_of(0), format!("[preview]: {message}")))?;
+        file.input.validate().map_err(|message| {
+            let line = text.find("weld_tolerance").map_or(1, line_of);
+            parse_error(line, format!("[input]: {message}"))
+        })?;
         let mut steps = Vec::with_capacity(file.step.len());
         let mut step_metrics = Vec::new();
         for spanned in file.step {
@@ -370,6 +395,21 @@ mod tests {
 
     fn parse(text: &str) -> Result<Recipe, RecipeError> {
         Recipe::from_toml(text, Path::new("r.toml"))
+    }
+
+    #[test]
+    fn weld_tolerance_is_range_checked() {
+        assert!(parse("[input]\nweld_tolerance = 0.001\n").is_ok());
+        assert!(parse("[input]\nweld_tolerance = 0.1\n").is_ok());
+        for bad in ["-0.001", "0.5", "nan", "inf", "1e300"] {
+            let e = parse(&format!("# c\n[input]\nweld_tolerance = {bad}\n")).unwrap_err();
+            let text = e.to_string();
+            assert!(matches!(e, RecipeError::Parse { .. }), "{bad}: {text}");
+            assert!(
+                text.contains("r.toml: line 3: [input]: weld_tolerance must be"),
+                "{bad}: {text}"
+            );
+        }
     }
 
     #[test]

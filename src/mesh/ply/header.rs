@@ -147,14 +147,15 @@ impl Header {
         self.elements.iter().find(|e| e.name == name)
     }
 
-    /// `comment TextureFile NAME` lines (MeshLab, OpenMVS), in order.
+    /// `comment TextureFile NAME` lines (MeshLab, OpenMVS), in order, names normalised
+    /// ([`normalise_name`](crate::mesh::texture::normalise_name)).
     pub fn texture_files(&self) -> Vec<String> {
         self.comments
             .iter()
             .filter_map(|c| {
                 let rest = c.strip_prefix("TextureFile")?;
                 rest.starts_with([' ', '\t'])
-                    .then(|| rest.trim().to_string())
+                    .then(|| crate::mesh::texture::normalise_name(rest.trim()))
                     .filter(|name| !name.is_empty())
             })
             .collect()

@@ -12,7 +12,7 @@ mod source;
 mod write;
 
 pub use read::{MISSING_TEXTURE_PREFIX, read};
-pub use write::write;
+pub use write::{write, write_reserving};
 
 /// How a PLY file is encoded on output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -21,9 +21,11 @@ use super::header::{self, Element, Format, Header, PropertyKind, Scalar};
 use super::source::{Ascii, Binary, Fault, Source, Step};
 use crate::mesh::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 use crate::mesh::error::{Location, MeshError, Result};
+use crate::mesh::limits::Limit;
 use crate::mesh::model::{Index, Material, Mesh, Texture};
+use crate::mesh::texture;
 use glam::{DVec2, DVec3};
-use std::path::{Component, Path};
+use std::path::Path;
 
 /// Marks, in `Material::other_statements`, a texture the PLY header names but that is not on
 /// disk (`# missing texture: NAME`). It keeps the name for the PLY writer (which writes the
@@ -192,11 +194,26 @@ fn for_each<S: Source>(
     Ok(())
 }
 
-/// Reserve for `count` elements, but never more than the remaining bytes could hold: a lying
-/// header must not cause a huge allocation.
-fn capacity<S: Source>(src: &S, element: &Element) -> usize {
-    let min = element.min_binary_size().max(2);
-    (element.count.min((src.remaining() / min) as u64)) as usize
+/// How many elements to reserve for: the header's count, but never more than the remaining
+/// bytes can hold, so a lying header cannot cause a huge allocation. An element takes at
+/// least the smallest encoding of each of its values ([`Source::min_value_bytes`]), and a list
+/// named in `min_lists` at least that many items (a face has 3 vertex indices).
+fn capacity<S: Source>(src: &S, element: &Element, min_lists: &[(&str, usize)]) -> usize {
+    let min: usize = element
+        .properties
+        .iter()
+        .map(|p| match p.kind {
+            PropertyKind::Scalar(ty) => src.min_value_bytes(ty),
+            PropertyKind::List { count, item } => {
+                let items = min_lists
+                    .iter()
+                    .find(|(name, _)| *name == p.name)
+                    .map_or(0, |(_, n)| *n);
+                src.min_value_bytes(count) + items * src.min_value_bytes(item)
+            }
+        })
+        .sum();
+    element.count.min((src.remaining() / min.max(1)) as u64) as usize
 }
 
 fn index_value(value: f64, count: usize, kind: &'static str) -> Step<Index> {
@@ -302,7 +319,7 @@ fn read_vertices<S: Source>(
     }
     let has_alpha = slots.contains(&ALPHA);
 
-    let cap = capacity(src, element);
+    let cap = capacity(src, element, &[]);
     raw.positions.reserve(cap);
     if normals {
         raw.normals.reserve(cap);
@@ -404,13 +421,13 @@ fn read_faces<S: Source>(
     let has_uvs = roles.contains(&Role::Texcoords);
     let has_texnumber = roles.contains(&Role::TexNumber);
 
-    let cap = capacity(src, element);
+    // Every face holds at least 3 indices; texture coordinates may be empty lists, so their
+    // arrays grow as they are read.
+    let cap = capacity(src, element, &[(index_name, 3)]);
     raw.face_start.reserve(cap);
     raw.face_vertices.reserve(cap * 3);
     if has_uvs {
         raw.corner_uvs.resize(raw.face_vertices.len(), NONE);
-        raw.corner_uvs.reserve(cap * 3);
-        raw.corner_uv_values.reserve(cap * 3);
     }
     if has_texnumber {
         raw.face_textures.reserve(cap);
@@ -558,7 +575,7 @@ fn read_multi_vertices<S: Source>(
             raw.skipped.push(format!("multi_texture_vertex.{}", p.name));
         }
     }
-    raw.multi_uvs.reserve(capacity(src, element));
+    raw.multi_uvs.reserve(capacity(src, element, &[]));
     for_each(path, element, src, |src, _| {
         let mut uv = DVec2::ZERO;
         for (k, p) in element.properties.iter().enumerate() {
@@ -670,63 +687,69 @@ fn apply_multi_texture(path: &Path, raw: &mut Raw) -> Result<()> {
     Ok(())
 }
 
-/// Materials from `comment TextureFile` lines.
+/// Materials from `comment TextureFile` lines, and how many images were decoded.
 ///
 /// PLY texture files are optional: MeshLab and OpenMVS name them in a comment, and PLYs are
 /// routinely passed around without them (see data/ply_texcoords). So a texture that is not on
 /// disk does not fail the load, even with `check_textures`: the material is kept with
 /// `diffuse_texture: None`, its name is kept in `other_statements` (see
-/// [`MISSING_TEXTURE_PREFIX`]) and a warning is logged. A name that leaves the scan's folder is
-/// treated the same way (never read). A texture that is present but does not decode is an error
-/// with `check_textures`, as for OBJ: the user clearly meant it to be used.
+/// [`MISSING_TEXTURE_PREFIX`]) and a warning is logged. A name that resolves outside the scan's
+/// folder (`..`, an absolute path, a symlink), names a FIFO or device, or is above the size
+/// limit is refused with an error, as for OBJ: it is never read. A texture that is present but
+/// does not decode is an error with `check_textures`, as for OBJ: the user clearly meant it to
+/// be used.
 fn texture_materials(
     path: &Path,
     names: &[String],
     options: &LoadOptions,
-) -> Result<Vec<Material>> {
-    let dir = path.parent().unwrap_or(Path::new(""));
-    names
-        .iter()
-        .enumerate()
-        .map(|(i, name)| {
-            let mut material = Material {
-                name: format!("texture{i}"),
-                ..Material::default()
-            };
-            let escapes = Path::new(name)
-                .components()
-                .any(|c| !matches!(c, Component::Normal(_) | Component::CurDir));
-            let file = dir.join(name);
-            if escapes || !file.is_file() {
-                let why = if escapes { "leaves the scan's folder; not read" } else { "is missing" };
-                tracing::warn!(path = %path.display(), texture = %name, "PLY texture {why}; material {} has no texture", material.name);
+) -> Result<(Vec<Material>, usize)> {
+    let scan_dir = texture::scan_folder(path);
+    let base_dir = texture::folder_of(path);
+    let cap = (options.limits.max_file_bytes, Limit::FileBytes);
+    let mut materials = Vec::with_capacity(names.len());
+    for (i, name) in names.iter().enumerate() {
+        let mut material = Material {
+            name: format!("texture{i}"),
+            ..Material::default()
+        };
+        match texture::resolve_in_scan(&scan_dir, &base_dir, name, path, cap) {
+            Ok(resolved) => {
+                material.diffuse_texture = Some(Texture {
+                    name: name.clone(),
+                    path: resolved.path,
+                    size: None,
+                });
+            }
+            Err(MeshError::Texture { .. }) => {
+                tracing::warn!(path = %path.display(), texture = %name, "PLY texture is missing; material {} has no texture", material.name);
                 material
                     .other_statements
                     .push(format!("{MISSING_TEXTURE_PREFIX}{name}"));
-                return Ok(material);
             }
-            let size = if options.check_textures {
-                let image = image::ImageReader::open(&file)
-                    .and_then(|r| r.with_guessed_format())
-                    .map_err(|e| e.to_string())
-                    .and_then(|r| r.decode().map_err(|e| e.to_string()))
-                    .map_err(|message| MeshError::Texture {
-                        path: path.to_path_buf(),
-                        texture: name.clone(),
-                        message,
-                    })?;
-                Some((image.width(), image.height()))
-            } else {
-                None
-            };
-            material.diffuse_texture = Some(Texture {
-                name: name.clone(),
-                path: file,
-                size,
-            });
-            Ok(material)
+            Err(e) => return Err(e),
+        }
+        materials.push(material);
+    }
+    if !options.check_textures {
+        return Ok((materials, 0));
+    }
+    let images: Vec<texture::ImageRef> = materials
+        .iter()
+        .filter_map(|m| m.diffuse_texture.as_ref())
+        .map(|t| texture::ImageRef {
+            path: &t.path,
+            name: &t.name,
+            referrer: path,
         })
-        .collect()
+        .collect();
+    let checked = texture::check_images(&images, &options.limits)?;
+    for t in materials
+        .iter_mut()
+        .filter_map(|m| m.diffuse_texture.as_mut())
+    {
+        t.size = checked.sizes.get(&t.path).copied();
+    }
+    Ok((materials, checked.decoded))
 }
 
 fn assemble(
@@ -738,7 +761,8 @@ fn assemble(
     let faces = raw.face_start.len() - 1;
     apply_multi_texture(path, &mut raw)?;
 
-    let mut materials = texture_materials(path, &header.texture_files(), options)?;
+    let (mut materials, decoded_textures) =
+        texture_materials(path, &header.texture_files(), options)?;
     let max_texture = raw.face_textures.iter().copied().max();
     let with_materials = !materials.is_empty() || max_texture.is_some_and(|m| m > 0);
     if let Some(max) = max_texture.filter(|_| with_materials) {
@@ -761,6 +785,7 @@ fn assemble(
     b.report.file_texcoords = vertex_uv_count + raw.corner_uv_values.len();
     b.report.strip_triangles = raw.strip_triangles.len();
     b.report.skipped = std::mem::take(&mut raw.skipped);
+    b.report.decoded_textures = decoded_textures;
 
     let has_normals = !raw.normals.is_empty();
     let bad_normals = raw.normals.iter().filter(|n| !n.is_finite()).count();
@@ -817,4 +842,33 @@ fn assemble(
     b.texcoords.extend_from_slice(&raw.corner_uv_values);
     b.materials = materials;
     b.finish(options)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reservations_are_bounded_by_the_bytes_that_remain() {
+        let text = "ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\n\
+                    property uchar x\nproperty uchar y\nproperty uchar z\n\
+                    element face 4294967295\nproperty list uchar uchar vertex_indices\nend_header\n";
+        let mut bytes = text.as_bytes().to_vec();
+        bytes.extend([0u8; 1200]);
+        let header = header::parse(Path::new("x.ply"), &bytes).unwrap();
+        let body = &bytes[header.body_start..];
+        let (vertex, face) = (
+            header.element("vertex").unwrap(),
+            header.element("face").unwrap(),
+        );
+        let faces = [("vertex_indices", 3)];
+        // Binary: 3 bytes a vertex; a face at least its count byte and 3 index bytes.
+        let binary = Binary::new(body, false);
+        assert_eq!(capacity(&binary, vertex, &[]), 400);
+        assert_eq!(capacity(&binary, face, &faces), 300);
+        // ASCII: at least a digit and a separator per value.
+        let ascii = Ascii::new(body, header.lines);
+        assert_eq!(capacity(&ascii, vertex, &[]), 200);
+        assert_eq!(capacity(&ascii, face, &faces), 150);
+    }
 }

@@ -50,6 +50,9 @@ pub trait Source {
     fn location(&self, element: &str, index: u64) -> Location;
     /// Bytes not yet read.
     fn remaining(&self) -> usize;
+    /// The fewest bytes one value of type `ty` takes in this encoding (with what separates it
+    /// from the next), so that counts can be checked against [`Source::remaining`].
+    fn min_value_bytes(&self, ty: Scalar) -> usize;
     /// A description of non-blank data after the last element, if any.
     fn trailing(&mut self) -> Option<String>;
 }
@@ -168,6 +171,10 @@ impl Source for Binary<'_> {
 
     fn remaining(&self) -> usize {
         self.bytes.len() - self.pos
+    }
+
+    fn min_value_bytes(&self, ty: Scalar) -> usize {
+        ty.size()
     }
 
     fn trailing(&mut self) -> Option<String> {
@@ -295,6 +302,11 @@ impl Source for Ascii<'_> {
 
     fn remaining(&self) -> usize {
         self.body.len() - self.pos
+    }
+
+    /// A digit and a space or line break.
+    fn min_value_bytes(&self, _ty: Scalar) -> usize {
+        2
     }
 
     fn trailing(&mut self) -> Option<String> {

@@ -237,13 +237,26 @@ fn present_texture_is_checked() {
         mesh.materials[0].diffuse_texture.as_ref().unwrap().size,
         None
     );
-    // Names leaving the folder are never read.
-    let (mesh, _) = read(
-        &path,
-        text("../tex.png").as_bytes(),
-        &LoadOptions::default(),
-    )
-    .unwrap();
+    // Names leaving the folder are never read: `..`, an absolute path, a symlink.
+    let outside = tempfile::tempdir().unwrap();
+    let secret = outside.path().join("secret.png");
+    image.save(&secret).unwrap();
+    std::os::unix::fs::symlink(&secret, dir.path().join("link.png")).unwrap();
+    for name in [
+        "../tex.png".to_string(),
+        "..\\tex.png".to_string(),
+        secret.display().to_string(),
+        "link.png".to_string(),
+    ] {
+        let e = read(&path, text(&name).as_bytes(), &LoadOptions::default()).unwrap_err();
+        assert!(matches!(e, MeshError::PathEscapes { .. }), "{name}: {e}");
+        assert!(
+            e.to_string().contains("resolves outside the scan's folder"),
+            "{e}"
+        );
+    }
+    // A missing texture is still only a warning.
+    let (mesh, _) = read(&path, text("gone.png").as_bytes(), &LoadOptions::default()).unwrap();
     assert!(mesh.materials[0].diffuse_texture.is_none());
 }
 

@@ -20,9 +20,11 @@ use super::PlyEncoding;
 use super::read::MISSING_TEXTURE_PREFIX;
 use crate::mesh::error::{MeshError, Result};
 use crate::mesh::model::Mesh;
+use crate::mesh::obj::copy_file;
+use crate::mesh::texture::{OutputNames, sanitise_output_name};
 use glam::DVec3;
 use std::fmt::Write as _;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 /// Values in one of the three encodings.
 trait Sink {
@@ -133,44 +135,39 @@ fn vertex_normals(mesh: &Mesh) -> Option<Vec<DVec3>> {
     )
 }
 
-/// A texture name safe to use below the output folder, or its bare file name.
-fn output_texture_name(name: &str) -> String {
-    let safe = Path::new(name)
-        .components()
-        .all(|c| matches!(c, Component::Normal(_) | Component::CurDir));
-    if safe {
-        return name.to_string();
-    }
-    Path::new(name)
-        .file_name()
-        .map(|f| f.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "texture.png".to_string())
-}
-
-/// The `TextureFile` name of each material, or an empty list when no material has a texture.
-fn texture_names(mesh: &Mesh) -> Vec<String> {
-    let names: Vec<Option<String>> = mesh
+/// The `TextureFile` name of each material (an empty list when no material has a texture)
+/// and the texture files to copy under those names. Names are chosen by [`OutputNames`]:
+/// the scan's names, sanitised, never one of the reserved names.
+fn texture_names(mesh: &Mesh, names: &mut OutputNames) -> (Vec<String>, Vec<(PathBuf, String)>) {
+    let mut copies: Vec<(PathBuf, String)> = Vec::new();
+    let chosen: Vec<Option<String>> = mesh
         .materials
         .iter()
-        .map(|m| {
-            m.diffuse_texture
-                .as_ref()
-                .map(|t| output_texture_name(&t.name))
-                .or_else(|| {
-                    m.other_statements
-                        .iter()
-                        .find_map(|s| s.strip_prefix(MISSING_TEXTURE_PREFIX).map(str::to_string))
-                })
+        .map(|m| match &m.diffuse_texture {
+            Some(t) => {
+                let name = names.name_for(&t.name, &t.path);
+                if !copies.iter().any(|(_, n)| *n == name) {
+                    copies.push((t.path.clone(), name.clone()));
+                }
+                Some(name)
+            }
+            // A texture that was missing on input: its name only, no file.
+            None => m
+                .other_statements
+                .iter()
+                .find_map(|s| s.strip_prefix(MISSING_TEXTURE_PREFIX))
+                .and_then(sanitise_output_name),
         })
         .collect();
-    if names.iter().all(Option::is_none) {
-        return Vec::new();
+    if chosen.iter().all(Option::is_none) {
+        return (Vec::new(), Vec::new());
     }
-    names
+    let list = chosen
         .into_iter()
         .zip(&mesh.materials)
         .map(|(name, m)| name.unwrap_or_else(|| m.name.clone()))
-        .collect()
+        .collect();
+    (list, copies)
 }
 
 fn header(mesh: &Mesh, encoding: PlyEncoding, layout: &Layout, textures: &[String]) -> String {
@@ -260,9 +257,19 @@ fn body(mesh: &Mesh, layout: &Layout, out: &mut impl Sink) {
     }
 }
 
-/// Writes `mesh` to `path` and copies its texture images next to it. Returns the files
-/// written, the PLY first.
+/// Writes `mesh` to `path`: [`write_reserving`] with nothing reserved.
 pub fn write(mesh: &Mesh, path: &Path, encoding: PlyEncoding) -> Result<Vec<PathBuf>> {
+    write_reserving(mesh, path, encoding, &[])
+}
+
+/// Writes `mesh` to `path` and copies its texture images next to it, under names that are
+/// never the PLY's own nor one of `reserved`. Returns the files written, the PLY first.
+pub fn write_reserving(
+    mesh: &Mesh,
+    path: &Path,
+    encoding: PlyEncoding,
+    reserved: &[String],
+) -> Result<Vec<PathBuf>> {
     if mesh.positions.len() > i32::MAX as usize {
         return Err(MeshError::malformed(
             path,
@@ -270,7 +277,12 @@ pub fn write(mesh: &Mesh, path: &Path, encoding: PlyEncoding) -> Result<Vec<Path
             "too many vertices for PLY int indices",
         ));
     }
-    let textures = texture_names(mesh);
+    let mut names = OutputNames::default();
+    let own_name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    for name in own_name.iter().chain(reserved) {
+        names.reserve(name);
+    }
+    let (textures, copies) = texture_names(mesh, &mut names);
     let layout = Layout {
         normals: vertex_normals(mesh),
         colors: !mesh.colors.is_empty(),
@@ -303,34 +315,17 @@ pub fn write(mesh: &Mesh, path: &Path, encoding: PlyEncoding) -> Result<Vec<Path
             sink.out
         }
     };
-    std::fs::write(path, bytes).map_err(|e| MeshError::io(path, e))?;
+    std::fs::write(path, bytes).map_err(|e| MeshError::write(path, e))?;
     let mut written = vec![path.to_path_buf()];
-    copy_textures(mesh, path, &mut written)?;
-    Ok(written)
-}
-
-fn copy_textures(mesh: &Mesh, path: &Path, written: &mut Vec<PathBuf>) -> Result<()> {
     let dir = path.parent().unwrap_or(Path::new(""));
-    for texture in mesh
-        .materials
-        .iter()
-        .filter_map(|m| m.diffuse_texture.as_ref())
-    {
-        let target = dir.join(output_texture_name(&texture.name));
-        if written.contains(&target) || !texture.path.is_file() {
+    for (source, name) in copies {
+        // A texture of a mesh made in memory may have no file: its name is written only.
+        if !source.is_file() {
             continue;
         }
-        let same = match (texture.path.canonicalize(), target.canonicalize()) {
-            (Ok(a), Ok(b)) => a == b,
-            _ => false,
-        };
-        if !same {
-            if let Some(parent) = target.parent() {
-                std::fs::create_dir_all(parent).map_err(|e| MeshError::io(parent, e))?;
-            }
-            std::fs::copy(&texture.path, &target).map_err(|e| MeshError::io(&target, e))?;
-        }
+        let target = dir.join(&name);
+        copy_file(&source, &target)?;
         written.push(target);
     }
-    Ok(())
+    Ok(written)
 }
