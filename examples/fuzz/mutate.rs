@@ -809,6 +809,7 @@ fn make_bombs() -> Vec<Vec<u8>> {
         bomb(b"v 0 0 0\nv 1 0 0\nv 0 1 0\n", b"f 1 2 3\n", 512 << 20),
         bomb(&ply_head(100_000_000), &[0], 1200 << 20),
         bomb(b"", b"\0", 4 << 30),
+        super::seeds::ratio_bomb((600 << 20) / 12),
     ]
 }
 

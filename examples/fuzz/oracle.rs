@@ -18,7 +18,7 @@
 //!
 //! Besides "no panic, no abort, no hang, no memory blow-up", the oracle checks what the issue
 //! promises of every accepted or refused input:
-//! - a refusal is a clear one-line error ([`MESSAGE_MAX`] characters at most, no line breaks);
+//! - a refusal is a clear one-line error ([`MESSAGE_MAX`] bytes at most, no line feed);
 //! - nothing outside the scan's folder is read into the model or copied on output (a secret file
 //!   sits beside the scan folder, a symlink and a literal `..\secret.png` inside it);
 //! - a daemon configuration that validates can be used (every duration fits the clock).
@@ -512,8 +512,11 @@ pub fn run_one(target: Target, scratch: &Scratch, input: &[u8]) -> Verdict {
     }
 }
 
+/// Not empty, not longer than [`MESSAGE_MAX`], no line feed. (A carriage return or another
+/// control character copied from a file name into a message is the business of whoever
+/// shows it: logs and the CLI escape control characters, issue #22 item 4.)
 fn is_one_clear_line(message: &str) -> bool {
-    !message.is_empty() && message.len() <= MESSAGE_MAX && !message.contains(['\n', '\r'])
+    !message.is_empty() && message.len() <= MESSAGE_MAX && !message.contains('\n')
 }
 
 /// Whether the gzip stream decompresses to something that starts with `prefix`.
@@ -555,7 +558,8 @@ fn load_mtl(s: &Scratch, input: &[u8]) -> Verdict {
     if let Err(v) = write_input(&mtl_path, input) {
         return v;
     }
-    let verdict = match mesh::mtl::load(&mtl_path, &s.scan) {
+    let limits = mesh::limits::InputLimits::default();
+    let verdict = match mesh::mtl::load(&mtl_path, &s.scan, &limits) {
         Err(e) => Verdict::Refused(e.to_string()),
         Ok(loaded) => match textures_inside(s, loaded.iter()) {
             Some(escape) => escape,
@@ -580,26 +584,31 @@ fn load_mtl(s: &Scratch, input: &[u8]) -> Verdict {
     verdict
 }
 
-/// Every diffuse texture must resolve inside the scan folder.
+/// Every file a material names (its diffuse texture, its other maps) must resolve inside
+/// the scan folder.
 fn textures_inside<'a>(
     s: &Scratch,
     materials: impl Iterator<Item = &'a mesh::Material>,
 ) -> Option<Verdict> {
     for m in materials {
-        let Some(t) = &m.diffuse_texture else {
-            continue;
-        };
-        let real = t.path.canonicalize().unwrap_or_else(|_| t.path.clone());
-        if !real.starts_with(&s.scan) {
-            return Some(Verdict::Violation(
-                Violation::Escape,
-                format!(
-                    "material {:?}: texture {:?} resolves to {}, outside the scan folder",
-                    m.name,
-                    t.name,
-                    real.display()
-                ),
-            ));
+        let files = m
+            .diffuse_texture
+            .iter()
+            .map(|t| &t.path)
+            .chain(m.map_files.iter().map(|f| &f.path));
+        for path in files {
+            let real = path.canonicalize().unwrap_or_else(|_| path.clone());
+            if !real.starts_with(&s.scan) {
+                return Some(Verdict::Violation(
+                    Violation::Escape,
+                    format!(
+                        "material {:?}: {} resolves to {}, outside the scan folder",
+                        m.name,
+                        path.display(),
+                        real.display()
+                    ),
+                ));
+            }
         }
     }
     None

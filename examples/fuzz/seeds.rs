@@ -403,6 +403,10 @@ fn gzip_seeds() -> Vec<Seed> {
         seed("garbage", b"\x1f\x8b\x08\x00garbage".to_vec()),
         // A bomb: 64 MiB of newlines in about 64 KiB (bigger ones are made by the mutator).
         seed("bomb-64mib", bomb(b"", b"\n", 64 << 20)),
+        // 1.2 GiB of newlines in 1.2 MB (finding 1 of #22 was a 1 MB one).
+        seed("bomb-1200mib", bomb(b"", b"\n", 1200 << 20)),
+        // 400 MiB of vertices at a gzip ratio just under 64, about 7.5 MB.
+        seed("ratio-bomb-400mib", ratio_bomb((400 << 20) / 12)),
     ];
     for s in ply_seeds(PlyForm::Little).into_iter().take(3) {
         seeds.push(seed(&format!("ply-{}", s.name), gzip(&s.bytes)));
@@ -415,14 +419,44 @@ fn gzip_seeds() -> Vec<Seed> {
 pub fn bomb(head: &[u8], pattern: &[u8], total: usize) -> Vec<u8> {
     const MEMBER: usize = 1 << 20;
     let block: Vec<u8> = pattern.iter().copied().cycle().take(MEMBER).collect();
+    bomb_of_blocks(head, &block, total)
+}
+
+/// A binary PLY of `n` vertices (float x y z, no faces) whose body compresses about 55 times:
+/// just under a gzip ratio limit of 64, it makes the most of whatever decompressed size the
+/// limits allow. The body is zeros with a pseudo-random low mantissa byte every 140 bytes
+/// (tiny finite floats, so the reader does not stop at a non-finite value).
+pub fn ratio_bomb(n: usize) -> Vec<u8> {
+    const MEMBER: usize = 12 << 16;
+    let mut block = vec![0u8; MEMBER];
+    let mut state: u32 = 0x2545_f491;
+    for i in (0..MEMBER).step_by(140) {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        block[i] = state as u8;
+    }
+    let head = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\n\
+         property float y\nproperty float z\nend_header\n"
+    );
+    bomb_of_blocks(head.as_bytes(), &block, n * 12)
+}
+
+fn bomb_of_blocks(head: &[u8], block: &[u8], total: usize) -> Vec<u8> {
     let member = {
         let mut enc = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
-        enc.write_all(&block).expect("gzip to memory");
+        enc.write_all(block).expect("gzip to memory");
         enc.finish().expect("gzip to memory")
     };
     let mut out = gzip(head);
-    for _ in 0..total.div_ceil(MEMBER) {
+    let whole = total / block.len();
+    for _ in 0..whole {
         out.extend_from_slice(&member);
+    }
+    let rest = total - whole * block.len();
+    if rest > 0 {
+        out.extend_from_slice(&gzip(&block[..rest]));
     }
     out
 }
