@@ -108,8 +108,12 @@ impl Worker {
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines() {
                 let Ok(line) = line else { break };
-                if let Some(reply) = line.strip_prefix("@@fuzz\t")
-                    && send.send(reply.to_string()).is_err()
+                // Anywhere in the line: the test harness starts a line ("test x ... ") that
+                // its test, the worker, ends.
+                if let Some(at) = line.find("@@fuzz\t")
+                    && send
+                        .send(line[at + "@@fuzz\t".len()..].to_string())
+                        .is_err()
                 {
                     break;
                 }
