@@ -76,17 +76,26 @@ fn default_max_input_bytes() -> u64 {
 fn default_min_free_disk_mb() -> u64 {
     1024
 }
+
+/// Longest time any `*_secs` key may be: a week. Larger values are typos, and would
+/// overflow the clock arithmetic.
+const MAX_SECS: f64 = 7.0 * 24.0 * 3600.0;
+
+/// The worker's memory floor when `job_memory_mb` is automatic: the recipe's fixed costs
+/// (metric samples, preview, thread stacks) on the smallest scan.
+const AUTO_MEMORY_FLOOR: u64 = 1 << 30;
+/// Bytes of worker memory allowed per byte of input when automatic. Measured peaks are
+/// 4-6 bytes per byte of OBJ text (docs/service.md); decoded textures are 3-4 bytes per
+/// pixel, often 10-20 per byte of JPEG. The margin is for the scans nobody measured.
+const AUTO_MEMORY_PER_INPUT_BYTE: u64 = 40;
+/// Compressed members are assumed to unpack to this many times their size.
+const AUTO_GZIP_RATIO: u64 = 8;
 fn default_quiet() -> f64 {
     30.0
 }
 fn default_recipe() -> PathBuf {
     PathBuf::from("config/recipes/face-scan.toml")
 }
-
-/// Longest duration any `*_secs` key may hold: a year. The daemon adds these to the clock
-/// (deadlines, timers); far larger values overflow it and panic at run time (issue #22:
-/// `job_timeout_secs = 1e300`, `rescan_secs = 1e19`), and no real setting comes near a year.
-pub const MAX_SECONDS: f64 = 365.0 * 24.0 * 3600.0;
 
 /// One watched folder.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -166,6 +175,15 @@ pub struct DaemonConfig {
     /// defaults.
     #[serde(default)]
     pub limits: InputLimits,
+    /// Memory limit of one job's worker process, in MiB; 0 = automatic (from the input's
+    /// size, at most three quarters of the machine's memory shared among `workers`).
+    #[serde(default)]
+    pub job_memory_mb: u64,
+    /// CPU-time limit of one job's worker process (all its threads), in seconds; 0 =
+    /// automatic (`job_timeout_secs` × the number of CPUs, so that the wall-clock limit
+    /// comes first on a machine that is not overloaded).
+    #[serde(default)]
+    pub job_cpu_secs: u64,
     #[serde(default)]
     pub watch: Vec<WatchConfig>,
 }
@@ -187,6 +205,8 @@ impl DaemonConfig {
             max_input_bytes: default_max_input_bytes(),
             min_free_disk_mb: default_min_free_disk_mb(),
             limits: InputLimits::default(),
+            job_memory_mb: 0,
+            job_cpu_secs: 0,
             watch: vec![WatchConfig {
                 path: PathBuf::from("./inbox"),
                 output: PathBuf::from("./outbox"),
@@ -235,6 +255,40 @@ impl DaemonConfig {
         }
     }
 
+    /// The memory limit of a job whose input set has `input_bytes` (see `job_memory_mb`).
+    pub fn job_memory_bytes(&self, input_bytes: u64) -> u64 {
+        if self.job_memory_mb > 0 {
+            return self.job_memory_mb << 20;
+        }
+        let share = total_memory_bytes() / 4 * 3 / self.workers.max(1) as u64;
+        AUTO_MEMORY_FLOOR
+            .saturating_add(input_bytes.saturating_mul(AUTO_MEMORY_PER_INPUT_BYTE))
+            .min(share.max(AUTO_MEMORY_FLOOR))
+    }
+
+    /// The memory limit for an input set whose members are `(bytes, compressed)`.
+    pub fn job_memory_bytes_for(&self, members: impl Iterator<Item = (u64, bool)>) -> u64 {
+        let expanded = members
+            .map(|(bytes, gz)| {
+                if gz {
+                    bytes.saturating_mul(AUTO_GZIP_RATIO)
+                } else {
+                    bytes
+                }
+            })
+            .fold(0u64, u64::saturating_add);
+        self.job_memory_bytes(expanded)
+    }
+
+    /// The CPU-time limit of one job (see `job_cpu_secs`).
+    pub fn job_cpu_secs(&self) -> u64 {
+        if self.job_cpu_secs > 0 {
+            return self.job_cpu_secs;
+        }
+        let cpus = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+        (self.job_timeout_secs * cpus).ceil().max(1.0) as u64
+    }
+
     /// The database file.
     pub fn database_path(&self) -> PathBuf {
         self.state_dir.join("scanmill.sqlite")
@@ -246,17 +300,44 @@ impl DaemonConfig {
     pub fn validate(&self) -> Vec<String> {
         let mut problems = Vec::new();
         let positive = |name: &str, v: f64, problems: &mut Vec<String>| {
-            if !(v.is_finite() && v > 0.0 && v <= MAX_SECONDS) {
+            if !(v.is_finite() && v > 0.0 && v <= MAX_SECS) {
                 problems.push(format!(
-                    "{name} must be a positive number of seconds up to {MAX_SECONDS}, not {v}"
+                    "{name} must be a positive number of seconds up to {MAX_SECS} (a week), not {v}"
                 ));
             }
         };
         if self.workers == 0 || self.workers > 64 {
             problems.push(format!("workers must be 1..=64, not {}", self.workers));
         }
-        if self.max_attempts == 0 {
-            problems.push("max_attempts must be at least 1".into());
+        if self.max_attempts == 0 || self.max_attempts > 100 {
+            problems.push(format!(
+                "max_attempts must be 1..=100, not {}",
+                self.max_attempts
+            ));
+        }
+        if self.max_input_bytes == 0 {
+            problems.push("max_input_bytes must be at least 1".into());
+        }
+        if self.min_free_disk_mb > 1 << 30 {
+            problems.push(format!(
+                "min_free_disk_mb must be at most {} (1 PiB), not {}",
+                1u64 << 30,
+                self.min_free_disk_mb
+            ));
+        }
+        if self.job_memory_mb != 0 && !(64..=1 << 30).contains(&self.job_memory_mb) {
+            problems.push(format!(
+                "job_memory_mb must be 0 (automatic) or 64..={} MiB, not {}",
+                1u64 << 30,
+                self.job_memory_mb
+            ));
+        }
+        if self.job_cpu_secs > MAX_SECS as u64 * 1024 {
+            problems.push(format!(
+                "job_cpu_secs must be 0 (automatic) or at most {}, not {}",
+                MAX_SECS as u64 * 1024,
+                self.job_cpu_secs
+            ));
         }
         positive("retry_base_secs", self.retry_base_secs, &mut problems);
         positive("retry_max_secs", self.retry_max_secs, &mut problems);
@@ -277,16 +358,16 @@ impl DaemonConfig {
         for (i, w) in self.watch.iter().enumerate() {
             let name = format!("watch[{i}] ({})", w.path.display());
             if !(w.quiet_period_secs.is_finite()
-                && (0.05..=MAX_SECONDS).contains(&w.quiet_period_secs))
+                && (0.05..=MAX_SECS).contains(&w.quiet_period_secs))
             {
                 problems.push(format!(
-                    "{name}: quiet_period_secs must be 0.05 to {MAX_SECONDS}, not {}",
+                    "{name}: quiet_period_secs must be 0.05..={MAX_SECS}, not {}",
                     w.quiet_period_secs
                 ));
             }
-            if !(w.poll_secs.is_finite() && (0.0..=MAX_SECONDS).contains(&w.poll_secs)) {
+            if !(w.poll_secs.is_finite() && (0.0..=MAX_SECS).contains(&w.poll_secs)) {
                 problems.push(format!(
-                    "{name}: poll_secs must be 0 to {MAX_SECONDS}, not {}",
+                    "{name}: poll_secs must be 0 (use file events) or up to {MAX_SECS}, not {}",
                     w.poll_secs
                 ));
             }
@@ -306,14 +387,21 @@ impl DaemonConfig {
             self.check_dir(&format!("{name}: output"), &w.output, &mut problems);
             let root = absolute(&w.path);
             let out = absolute(&w.output);
-            if out.starts_with(&root) || root.starts_with(&out) {
+            // Lexically, and again with every link resolved: an output that is a symlink
+            // into the watched folder is inside it.
+            let (real_root, real_out) = (resolved(&root), resolved(&out));
+            if out.starts_with(&root)
+                || root.starts_with(&out)
+                || real_out.starts_with(&real_root)
+                || real_root.starts_with(&real_out)
+            {
                 problems.push(format!(
                     "{name}: output {} and the watched folder must not contain one another \
                      (the daemon would process its own output)",
                     w.output.display()
                 ));
             }
-            if state.starts_with(&root) {
+            if state.starts_with(&root) || resolved(&state).starts_with(&real_root) {
                 problems.push(format!(
                     "{name}: state_dir must not be inside the watched folder"
                 ));
@@ -326,7 +414,9 @@ impl DaemonConfig {
                         other.path.display()
                     ));
                 }
-                if absolute(&other.output).starts_with(&root) {
+                if absolute(&other.output).starts_with(&root)
+                    || resolved(&other.output).starts_with(&real_root)
+                {
                     problems.push(format!(
                         "watch[{j}]: output is inside watched folder {}",
                         w.path.display()
@@ -388,6 +478,42 @@ pub fn load_recipe(path: &Path) -> Result<Recipe, RecipeError> {
 
 /// The fallback recipe: recompute normals, write OBJ.
 pub const BUILT_IN_RECIPE: &str = "[output]\nformat = \"obj\"\n\n[[step]]\nkind = \"normals\"\n";
+
+/// `path` with every symlink resolved, as far as it exists: the longest existing ancestor
+/// is canonicalised and the missing rest appended (it is created later, as a real folder).
+pub fn resolved(path: &Path) -> PathBuf {
+    let path = absolute(path);
+    let mut existing = path.clone();
+    let mut rest = Vec::new();
+    loop {
+        if let Ok(real) = existing.canonicalize() {
+            return rest
+                .iter()
+                .rev()
+                .fold(real, |p, c: &std::ffi::OsString| p.join(c));
+        }
+        match (
+            existing.file_name().map(|n| n.to_os_string()),
+            existing.parent(),
+        ) {
+            (Some(name), Some(parent)) => {
+                rest.push(name);
+                existing = parent.to_path_buf();
+            }
+            _ => return path,
+        }
+    }
+}
+
+/// The machine's physical memory, from sysinfo(2); 4 GiB if it cannot be read.
+pub fn total_memory_bytes() -> u64 {
+    // SAFETY: sysinfo fills the zeroed struct it is given.
+    let mut info: libc::sysinfo = unsafe { std::mem::zeroed() };
+    if unsafe { libc::sysinfo(&mut info) } != 0 {
+        return 4 << 30;
+    }
+    (info.totalram as u64).saturating_mul(info.mem_unit.max(1) as u64)
+}
 
 /// `path` made absolute against the working directory and cleaned of `.` and `..`
 /// (lexically: the folders may not exist yet).

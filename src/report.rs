@@ -3,13 +3,13 @@
 //! as JSON and the daemon stores the same figures in SQLite.
 
 use crate::mesh::{LoadReport, Mesh};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
 /// A file and the SHA-256 of its content.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FileHash {
     pub path: PathBuf,
     pub sha256: String,
@@ -43,7 +43,7 @@ impl FileHash {
 }
 
 /// Basic counts of a mesh, cheap to compute.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct MeshCounts {
     pub vertices: usize,
     pub faces: usize,
@@ -64,7 +64,7 @@ impl MeshCounts {
     }
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct InputReport {
     pub path: PathBuf,
     /// SHA-256 over the mesh file and every texture it references, in a fixed order.
@@ -74,7 +74,7 @@ pub struct InputReport {
     pub load: LoadReport,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct RecipeReport {
     pub path: Option<PathBuf>,
     pub hash: String,
@@ -82,7 +82,7 @@ pub struct RecipeReport {
 }
 
 /// One step as it ran.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct StepReport {
     pub kind: String,
     pub wall_ms: f64,
@@ -98,7 +98,7 @@ pub struct StepReport {
     pub metrics: Option<Value>,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct OutputReport {
     pub files: Vec<FileHash>,
     pub counts: MeshCounts,
@@ -106,13 +106,13 @@ pub struct OutputReport {
 
 /// The preview picture (`preview` module): the file written beside the result and what
 /// it shows.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct PreviewReport {
     pub file: FileHash,
     pub figures: crate::preview::PreviewFigures,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Report {
     pub scanmill_version: String,
     pub input: InputReport,

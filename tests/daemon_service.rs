@@ -160,6 +160,12 @@ fn sigkill_mid_job_then_restart_completes_without_duplicate_or_partial_output() 
     );
     signal(&d, libc::SIGKILL);
     let _ = d.wait();
+    // The job's worker process does not outlive its daemon.
+    assert!(
+        wait_for(10, || lab.worker_pids().is_empty()),
+        "orphaned workers: {:?}",
+        lab.worker_pids()
+    );
     assert!(
         lab.visible_outputs().is_empty(),
         "partial output: {:?}",
@@ -174,7 +180,10 @@ fn sigkill_mid_job_then_restart_completes_without_duplicate_or_partial_output() 
     );
     let jobs = lab.jobs();
     assert_eq!(jobs.len(), 1);
-    assert_eq!(jobs[0]["attempts"], 1, "the killed attempt is not counted");
+    assert_eq!(
+        jobs[0]["attempts"], 2,
+        "the attempt the daemon died in is counted, so a file that kills it is quarantined in the end"
+    );
     let shown = lab.show(jobs[0]["id"].as_i64().unwrap());
     let outcomes: Vec<_> = shown["attempts_log"]
         .as_array()

@@ -2,15 +2,14 @@
 //! `daemon`, `history`, `show`, `requeue`, `validate-config`, `db backup`.
 //! Each returns an exit code (sysexits, see docs/service.md "Exit codes").
 
-use super::service::{self, ServiceError, TestHooks};
-use super::worker::{ProcessFailure, Processor};
+use super::service::{self, ServiceError};
+use super::worker_process::{self, WorkerArgs};
 use crate::config::{ConfigError, DaemonConfig};
 use crate::store::query::{HistoryFilter, HistoryRow, STATES};
 use crate::store::{Store, StoreError, now_ms};
 use clap::Subcommand;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// Exit codes (sysexits.h).
 pub mod exit {
@@ -77,6 +76,23 @@ pub enum ServiceCommand {
         #[command(subcommand)]
         command: DbCommand,
     },
+    /// Internal: one daemon job in its own process (started by the daemon, not by hand).
+    #[command(hide = true)]
+    Worker {
+        /// The pipe protocol version the daemon speaks.
+        #[arg(long)]
+        protocol: u32,
+        #[arg(long)]
+        job_id: i64,
+        #[arg(long)]
+        input: PathBuf,
+        #[arg(long)]
+        recipe: PathBuf,
+        #[arg(long)]
+        recipe_hash: String,
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 #[derive(Debug, Clone, Subcommand)]
@@ -93,7 +109,10 @@ impl ServiceCommand {
     /// Whether this command sets up its own logging (the daemon logs at info, to journald
     /// under systemd); `main` should not install a subscriber first.
     pub fn owns_logging(&self) -> bool {
-        matches!(self, ServiceCommand::Daemon { .. })
+        matches!(
+            self,
+            ServiceCommand::Daemon { .. } | ServiceCommand::Worker { .. }
+        )
     }
 
     /// Runs the command; returns the process exit code.
@@ -103,8 +122,31 @@ impl ServiceCommand {
         let mut out = std::io::stdout();
         let mut err = std::io::stderr();
         match self {
-            ServiceCommand::Daemon { config } => {
-                run_daemon(config.as_deref(), default_processor(), &mut err)
+            ServiceCommand::Daemon { config } => run_daemon(config.as_deref(), &mut err),
+            ServiceCommand::Worker {
+                protocol,
+                job_id,
+                input,
+                recipe,
+                recipe_hash,
+                out,
+            } => {
+                super::systemd::init_logging();
+                if *protocol != super::protocol::VERSION {
+                    let _ = writeln!(
+                        err,
+                        "scanmill: error: the daemon speaks worker protocol {protocol}, this binary {}",
+                        super::protocol::VERSION
+                    );
+                    return exit::USAGE;
+                }
+                worker_process::run(WorkerArgs {
+                    job_id: *job_id,
+                    input: input.clone(),
+                    recipe: recipe.clone(),
+                    recipe_hash: recipe_hash.clone(),
+                    out: out.clone(),
+                })
             }
             ServiceCommand::ValidateConfig { config } => {
                 validate_config(config.as_deref(), &mut out, &mut err)
@@ -206,30 +248,10 @@ fn report(result: Result<(), CliError>, err: &mut dyn Write) -> u8 {
     }
 }
 
-/// The worker's processor: the same `process_scan` as `scanmill process`.
-pub fn default_processor() -> Processor {
-    Arc::new(|input, recipe, recipe_path, out_dir, progress| {
-        crate::process::process_scan(input, recipe, Some(recipe_path), out_dir, progress).map_err(
-            |e| {
-                let kind = match &e {
-                    crate::process::ProcessError::Input(_) => "input",
-                    crate::process::ProcessError::Step { .. } => "step",
-                    crate::process::ProcessError::Output { .. } => "output",
-                };
-                ProcessFailure {
-                    kind: kind.into(),
-                    transient: e.is_transient(),
-                    message: e.to_string(),
-                }
-            },
-        )
-    })
-}
-
 /// `scanmill daemon`: runs until SIGTERM/SIGINT. Exit 0 after a clean stop, 78 for a bad
 /// configuration, 75 when another daemon holds the state directory, 69 when the database
 /// cannot be opened.
-pub fn run_daemon(config: Option<&Path>, processor: Processor, err: &mut dyn Write) -> u8 {
+pub fn run_daemon(config: Option<&Path>, err: &mut dyn Write) -> u8 {
     super::systemd::init_logging();
     let (cfg, origin) = match DaemonConfig::locate(config) {
         Ok(x) => x,
@@ -238,7 +260,7 @@ pub fn run_daemon(config: Option<&Path>, processor: Processor, err: &mut dyn Wri
             return exit::CONFIG;
         }
     };
-    match service::run(cfg, origin, processor, TestHooks::from_env()) {
+    match service::run(cfg, origin) {
         Ok(()) => exit::OK,
         Err(e) => {
             tracing::error!("{e}");

@@ -406,6 +406,14 @@ impl Tracker {
             .insert((root.to_string(), rel_path.to_string()), members);
     }
 
+    /// A ready set that could not be handed over (the database was busy): it becomes
+    /// pending again, so that a later look hands it over anew.
+    pub fn hand_back(&mut self, primary: &Path) {
+        if let Some(t) = self.sets.get_mut(primary) {
+            t.handled = None;
+        }
+    }
+
     /// Number of sets not yet handed over (waiting for quiet or for members).
     pub fn pending(&self) -> usize {
         self.sets

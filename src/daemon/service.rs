@@ -1,6 +1,7 @@
 //! The service loop: one tokio task (current-thread runtime) that owns the database
 //! connection and the tracker, and reacts to signals, file-event hints, job results and
-//! its own timers. Jobs run on their own OS threads ([`super::worker`]).
+//! its own timers. Each job is supervised from its own OS thread ([`super::worker`]) and
+//! runs in its own worker process ([`super::supervise`]).
 //!
 //! Start-up: lock the state dir, migrate, requeue jobs left running (not counted), delete
 //! stale temporaries, set the watches, walk every root once, then READY=1.
@@ -12,8 +13,9 @@
 
 use super::glob::Filter;
 use super::scanset::{Event, Known, RootSpec, Tracker, job_key};
+use super::supervise::WorkerLimits;
 use super::systemd::{Notifier, StateLock, free_bytes};
-use super::worker::{self, JobResult, JobSpec, Processor, PublishGate};
+use super::worker::{self, JobResult, JobSpec, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
 use crate::store::{
@@ -46,25 +48,6 @@ pub enum ServiceError {
     },
 }
 
-/// Hidden knobs for tests; documented as test-only.
-#[derive(Debug, Clone, Default)]
-pub struct TestHooks {
-    /// Sleep at every processing stage (`SCANMILL_TEST_STEP_DELAY_MS`).
-    pub stage_delay: Option<Duration>,
-}
-
-impl TestHooks {
-    pub fn from_env() -> TestHooks {
-        TestHooks {
-            stage_delay: std::env::var("SCANMILL_TEST_STEP_DELAY_MS")
-                .ok()
-                .and_then(|v| v.parse::<u64>().ok())
-                .filter(|&ms| ms > 0)
-                .map(Duration::from_millis),
-        }
-    }
-}
-
 struct RootRuntime {
     path: PathBuf,
     output: PathBuf,
@@ -93,8 +76,6 @@ struct Service {
     roots: Vec<RootRuntime>,
     owner: Owner,
     notifier: Notifier,
-    processor: Processor,
-    hooks: TestHooks,
     running: HashMap<i64, Running>,
     results_tx: mpsc::UnboundedSender<(i64, JobResult)>,
     hints_tx: mpsc::Sender<usize>,
@@ -107,10 +88,21 @@ struct Service {
     data_version: i64,
     next_run_after: Option<i64>,
     counts: (i64, i64),
+    /// Finished jobs whose end could not be recorded yet (database busy).
+    unrecorded: Vec<(i64, JobResult)>,
+    /// The current pause after a busy database; reset once a turn of the loop succeeds.
+    busy_pause: Duration,
 }
 
 const DEBOUNCE: Duration = Duration::from_millis(100);
 const CLAIM_POLL: Duration = Duration::from_secs(1);
+/// Pauses while another process holds the database's write lock (each on top of SQLite's
+/// own 10 s busy timeout).
+const BUSY_PAUSE_MIN: Duration = Duration::from_millis(500);
+const BUSY_PAUSE_MAX: Duration = Duration::from_secs(10);
+/// A job's supervisor kills its worker at `job_timeout_secs`; the service gives up on the
+/// supervisor itself (stuck publishing on a hung file system) only this much later.
+const SUPERVISOR_GRACE: Duration = Duration::from_secs(120);
 
 fn secs(s: f64) -> Duration {
     Duration::from_secs_f64(s.max(0.0))
@@ -124,12 +116,7 @@ fn root_identity(path: &Path) -> Option<(u64, u64)> {
 }
 
 /// Runs the daemon until SIGTERM/SIGINT. `config` must come from [`DaemonConfig::locate`].
-pub fn run(
-    config: DaemonConfig,
-    origin: ConfigSource,
-    processor: Processor,
-    hooks: TestHooks,
-) -> Result<(), ServiceError> {
+pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceError> {
     tracing::info!(config = %origin, version = env!("CARGO_PKG_VERSION"), "scanmill daemon starting");
     // Make the folders first when asked, so that validation sees them.
     if config.create_missing_dirs {
@@ -221,8 +208,6 @@ pub fn run(
         roots,
         owner: Owner::current(),
         notifier: Notifier::from_env(),
-        processor,
-        hooks,
         running: HashMap::new(),
         results_tx,
         hints_tx,
@@ -233,6 +218,8 @@ pub fn run(
         data_version: 0,
         next_run_after: None,
         counts: (0, 0),
+        unrecorded: Vec::new(),
+        busy_pause: Duration::ZERO,
     };
     let result = runtime.block_on(service.main_loop(results_rx, hints_rx));
     drop(lock);
@@ -267,17 +254,11 @@ impl Service {
         let watchdog = self.notifier.watchdog().map(|w| w / 2);
 
         loop {
-            let version = self.store.data_version()?;
-            let due = self.next_run_after.is_some_and(|t| t <= now_ms());
-            if self.work_maybe || due || version != self.data_version || self.paused.is_some() {
-                self.data_version = version;
-                self.work_maybe = false;
-                self.claim_jobs()?;
-                self.next_run_after = self.store.next_run_after()?;
-                self.counts = self.store.counts()?;
+            if let Err(e) = self.tend_queue() {
+                self.survive(e).await?;
+                continue;
             }
-            self.check_timeouts()?;
-            self.update_status()?;
+            self.busy_pause = Duration::ZERO;
             self.notifier.watchdog_ping();
 
             let now = Instant::now();
@@ -318,24 +299,53 @@ impl Service {
                         }
                     }
                 }
-                Some((id, result)) = results_rx.recv() => self.job_finished(id, result)?,
+                Some((id, result)) = results_rx.recv() => {
+                    if let Err(e) = self.job_finished(id, result) {
+                        self.survive(e).await?;
+                    }
+                }
                 _ = tokio::time::sleep_until(next.into()) => {}
             }
-            let now = Instant::now();
-            for i in 0..self.roots.len() {
-                if self.roots[i].overflow.swap(false, Ordering::SeqCst) {
-                    tracing::warn!(root = %self.roots[i].path.display(), "event queue overflow or watcher error: full rescan");
-                    self.roots[i].walk_due = now;
-                }
-                if self.roots[i].walk_due <= now {
-                    self.walk_root(i)?;
-                }
+            if let Err(e) = self.tend_roots() {
+                self.survive(e).await?;
             }
-            let events = self.tracker.recheck_pending(now, now_ms());
-            self.handle_events(events)?;
         }
         self.shutdown(&mut results_rx, &mut sigterm, &mut sigint)
             .await
+    }
+
+    /// The queue's side of one turn of the loop: record what could not be recorded, claim
+    /// what can run, notice timeouts, tell systemd.
+    fn tend_queue(&mut self) -> Result<(), ServiceError> {
+        self.record_unrecorded()?;
+        let version = self.store.data_version()?;
+        let due = self.next_run_after.is_some_and(|t| t <= now_ms());
+        if self.work_maybe || due || version != self.data_version || self.paused.is_some() {
+            self.data_version = version;
+            self.work_maybe = false;
+            self.claim_jobs()?;
+            self.next_run_after = self.store.next_run_after()?;
+            self.counts = self.store.counts()?;
+        }
+        self.check_timeouts()?;
+        self.update_status()
+    }
+
+    /// The watched folders' side of one turn: walk the roots that are due, then look again
+    /// at the scans that were not ready.
+    fn tend_roots(&mut self) -> Result<(), ServiceError> {
+        let now = Instant::now();
+        for i in 0..self.roots.len() {
+            if self.roots[i].overflow.swap(false, Ordering::SeqCst) {
+                tracing::warn!(root = %self.roots[i].path.display(), "event queue overflow or watcher error: full rescan");
+                self.roots[i].walk_due = now;
+            }
+            if self.roots[i].walk_due <= now {
+                self.walk_root(i)?;
+            }
+        }
+        let events = self.tracker.recheck_pending(now, now_ms());
+        self.handle_events(events)
     }
 
     /// Sets up (or re-creates) the file watch of a root that exists; falls back to
@@ -414,63 +424,78 @@ impl Service {
     }
 
     fn handle_events(&mut self, events: Vec<Event>) -> Result<(), ServiceError> {
-        for e in events {
-            match e {
-                Event::Ready(set) => {
-                    let r = &self.roots[set.root_index];
-                    let root = r.path.to_string_lossy().into_owned();
-                    let job = NewJob {
-                        job_key: job_key(&set.set_hash, &r.recipe_hash),
-                        set_hash: set.set_hash.clone(),
-                        root: root.clone(),
-                        rel_path: set.rel_path.clone(),
-                        output_root: r.output.to_string_lossy().into_owned(),
-                        recipe_path: r.recipe_path.to_string_lossy().into_owned(),
-                        recipe_hash: r.recipe_hash.clone(),
-                        recipe_json: r.recipe.resolved_json().to_string(),
-                        config_hash: self.config_hash.clone(),
-                        max_attempts: self.config.max_attempts,
-                        inputs: set.inputs.clone(),
-                    };
-                    self.work_maybe = true;
-                    match self.store.enqueue(&job)? {
-                        Enqueued::New(id) => {
-                            tracing::info!(job_id = id, input = %set.rel_path, "queued")
-                        }
-                        Enqueued::Revived(id) => {
-                            tracing::info!(job_id = id, input = %set.rel_path, "input is back: queued again")
-                        }
-                        Enqueued::Existing { id, state } => tracing::info!(
-                            job_id = id,
-                            input = %set.rel_path,
-                            state,
-                            "same content and recipe as an existing job: not processed again"
-                        ),
+        let mut events = events.into_iter();
+        while let Some(e) = events.next() {
+            if let Err(error) = self.handle_event(e.clone()) {
+                // Nothing of a ready set may be lost: it and every set after it are
+                // pending again and handed over on a later turn.
+                for e in std::iter::once(e).chain(events) {
+                    if let Event::Ready(set) = e {
+                        self.tracker.hand_back(&set.primary);
                     }
-                    let members = set
-                        .inputs
-                        .iter()
-                        .map(|m| (m.rel_path.clone(), m.size, m.mtime_ns, m.ino))
-                        .collect();
-                    self.tracker.remember(&root, &set.rel_path, members);
                 }
-                Event::Waiting {
-                    root_index,
-                    rel_path,
-                    reason,
-                    first_seen_ms,
-                } => {
-                    let root = self.roots[root_index].path.to_string_lossy().into_owned();
-                    self.store
-                        .set_waiting(&root, &rel_path, &reason, first_seen_ms)?;
+                return Err(error);
+            }
+        }
+        Ok(())
+    }
+
+    fn handle_event(&mut self, e: Event) -> Result<(), ServiceError> {
+        match e {
+            Event::Ready(set) => {
+                let r = &self.roots[set.root_index];
+                let root = r.path.to_string_lossy().into_owned();
+                let job = NewJob {
+                    job_key: job_key(&set.set_hash, &r.recipe_hash),
+                    set_hash: set.set_hash.clone(),
+                    root: root.clone(),
+                    rel_path: set.rel_path.clone(),
+                    output_root: r.output.to_string_lossy().into_owned(),
+                    recipe_path: r.recipe_path.to_string_lossy().into_owned(),
+                    recipe_hash: r.recipe_hash.clone(),
+                    recipe_json: r.recipe.resolved_json().to_string(),
+                    config_hash: self.config_hash.clone(),
+                    max_attempts: self.config.max_attempts,
+                    inputs: set.inputs.clone(),
+                };
+                self.work_maybe = true;
+                match self.store.enqueue(&job)? {
+                    Enqueued::New(id) => {
+                        tracing::info!(job_id = id, input = %set.rel_path, "queued")
+                    }
+                    Enqueued::Revived(id) => {
+                        tracing::info!(job_id = id, input = %set.rel_path, "input is back: queued again")
+                    }
+                    Enqueued::Existing { id, state } => tracing::info!(
+                        job_id = id,
+                        input = %set.rel_path,
+                        state,
+                        "same content and recipe as an existing job: not processed again"
+                    ),
                 }
-                Event::NotWaiting {
-                    root_index,
-                    rel_path,
-                } => {
-                    let root = self.roots[root_index].path.to_string_lossy().into_owned();
-                    self.store.clear_waiting(&root, &rel_path)?;
-                }
+                let members = set
+                    .inputs
+                    .iter()
+                    .map(|m| (m.rel_path.clone(), m.size, m.mtime_ns, m.ino))
+                    .collect();
+                self.tracker.remember(&root, &set.rel_path, members);
+            }
+            Event::Waiting {
+                root_index,
+                rel_path,
+                reason,
+                first_seen_ms,
+            } => {
+                let root = self.roots[root_index].path.to_string_lossy().into_owned();
+                self.store
+                    .set_waiting(&root, &rel_path, &reason, first_seen_ms)?;
+            }
+            Event::NotWaiting {
+                root_index,
+                rel_path,
+            } => {
+                let root = self.roots[root_index].path.to_string_lossy().into_owned();
+                self.store.clear_waiting(&root, &rel_path)?;
             }
         }
         Ok(())
@@ -531,9 +556,8 @@ impl Service {
                 config_hash: self.config_hash.clone(),
                 owner: self.owner.clone(),
                 max_input_bytes: self.config.max_input_bytes,
-                processor: self.processor.clone(),
+                limits: self.worker_limits(&job),
                 gate: gate.clone(),
-                stage_delay: self.hooks.stage_delay,
             };
             let tx = self.results_tx.clone();
             let id = job.id;
@@ -558,45 +582,99 @@ impl Service {
                 Running {
                     job,
                     gate,
-                    deadline: Instant::now() + secs(self.config.job_timeout_secs),
+                    deadline: Instant::now()
+                        + secs(self.config.job_timeout_secs)
+                        + SUPERVISOR_GRACE,
                 },
             );
         }
         Ok(())
     }
 
+    /// The limits of one job's worker process.
+    fn worker_limits(&self, job: &ClaimedJob) -> WorkerLimits {
+        let members = job
+            .inputs
+            .iter()
+            .map(|m| (m.size, m.rel_path.to_ascii_lowercase().ends_with(".gz")));
+        WorkerLimits {
+            memory_bytes: self.config.job_memory_bytes_for(members),
+            cpu_secs: self.config.job_cpu_secs(),
+            wall: secs(self.config.job_timeout_secs),
+        }
+    }
+
     fn retry(&self) -> (f64, f64) {
         (self.config.retry_base_secs, self.config.retry_max_secs)
     }
 
+    /// Records a job's end. While the database is busy (another process holds its write
+    /// lock) the result is kept and recorded on a later turn of the loop: never lost.
     fn job_finished(&mut self, id: i64, result: JobResult) -> Result<(), ServiceError> {
-        let Some(running) = self.running.remove(&id) else {
+        let Some(running) = self.running.get(&id) else {
             // An abandoned job's thread came back: already recorded.
             return Ok(());
         };
-        self.work_maybe = true;
-        match result {
-            JobResult::Finished { finish, wall_ms } => {
-                let state = self
-                    .store
-                    .finish(&running.job, &finish, self.retry(), wall_ms)?;
-                match (&finish, state) {
-                    (Finish::Done { output_dir, .. }, _) => {
-                        tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
-                    }
-                    (Finish::Failed { kind, message, .. }, s) => {
-                        tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {message}")
-                    }
-                    (Finish::Interrupted { .. }, _) => {}
-                }
-            }
-            JobResult::Abandoned => {
-                let f = Finish::Interrupted {
+        let (finish, wall_ms) = match &result {
+            JobResult::Finished { finish, wall_ms } => (finish.clone(), *wall_ms),
+            JobResult::Abandoned => (
+                Finish::Interrupted {
                     reason: "abandoned".into(),
-                };
-                self.store.finish(&running.job, &f, self.retry(), 0.0)?;
+                },
+                0.0,
+            ),
+        };
+        let state = match self
+            .store
+            .finish(&running.job, &finish, self.retry(), wall_ms)
+        {
+            Ok(state) => state,
+            Err(e) if e.is_busy() => {
+                self.unrecorded.push((id, result));
+                return Err(e.into());
+            }
+            Err(e) => return Err(e.into()),
+        };
+        self.running.remove(&id);
+        self.work_maybe = true;
+        match (&finish, state) {
+            (Finish::Done { output_dir, .. }, _) => {
+                tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
+            }
+            (Finish::Failed { kind, message, .. }, s) => {
+                tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {message}")
+            }
+            (Finish::Interrupted { .. }, _) => {}
+        }
+        Ok(())
+    }
+
+    /// Results that could not be recorded while the database was busy, oldest first.
+    fn record_unrecorded(&mut self) -> Result<(), ServiceError> {
+        let mut pending = std::mem::take(&mut self.unrecorded).into_iter();
+        while let Some((id, result)) = pending.next() {
+            if let Err(e) = self.job_finished(id, result) {
+                self.unrecorded.extend(pending);
+                return Err(e);
             }
         }
+        Ok(())
+    }
+
+    /// After an error in the loop: a busy database is waited out (with a growing pause,
+    /// the watchdog fed meanwhile); anything else ends the service.
+    async fn survive(&mut self, error: ServiceError) -> Result<(), ServiceError> {
+        if !matches!(&error, ServiceError::Store(e) if e.is_busy()) {
+            return Err(error);
+        }
+        self.busy_pause = (self.busy_pause * 2).clamp(BUSY_PAUSE_MIN, BUSY_PAUSE_MAX);
+        tracing::warn!(
+            "{error}: another process holds the database's write lock; trying again in {:.1} s",
+            self.busy_pause.as_secs_f64()
+        );
+        self.notifier.watchdog_ping();
+        tokio::time::sleep(self.busy_pause).await;
+        self.notifier.watchdog_ping();
         Ok(())
     }
 
@@ -613,19 +691,21 @@ impl Service {
             if !r.gate.abandon() {
                 continue; // publishing right now: its result comes in a moment
             }
-            let r = self.running.remove(&id).expect("present");
+            let r = &self.running[&id];
             self.work_maybe = true;
             let f = Finish::Failed {
                 kind: "timeout".into(),
                 message: format!(
-                    "ran longer than job_timeout_secs = {}; abandoned (its thread finishes in the background and cannot publish)",
-                    self.config.job_timeout_secs
+                    "its supervisor did not finish within job_timeout_secs = {} plus {} s (stuck writing or publishing?); abandoned, it cannot publish",
+                    self.config.job_timeout_secs,
+                    SUPERVISOR_GRACE.as_secs()
                 ),
                 transient: true,
             };
             let state =
                 self.store
                     .finish(&r.job, &f, self.retry(), self.config.job_timeout_secs * 1e3)?;
+            self.running.remove(&id);
             tracing::error!(job_id = id, state = ?state, "job timed out");
         }
         Ok(())

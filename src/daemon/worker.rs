@@ -1,40 +1,26 @@
-//! One job on one blocking thread: check the inputs are still the ones queued, run the
-//! recipe into a staging folder, check again, write the provenance sidecar, publish.
+//! One job, supervised from one OS thread of the daemon: check the inputs are still the ones
+//! queued, run the recipe in a worker process ([`super::supervise`]) into a staging folder,
+//! check again, write the provenance sidecar, publish.
 //!
-//! The job runs on its own OS thread (not an async worker), inside `catch_unwind`, so a
-//! panicking job is recorded as failed and the service goes on. A thread cannot be killed:
-//! a job past its time limit is *abandoned* instead. Its [`PublishGate`] is closed by the
-//! service, and the worker checks the gate right before the one rename that makes the
-//! result visible, so an abandoned job can never publish; it only finishes its computation
-//! in the background and removes its staging folder.
+//! Everything that reads the scan runs in the worker process, under its memory, CPU and
+//! wall-clock limits: a file that makes it abort, crash or run out of memory ends that
+//! process only. The thread here only stats files, writes the sidecar and renames; it runs
+//! inside `catch_unwind` all the same. A job that is abandoned (the daemon stopping) has
+//! its [`PublishGate`] closed by the service: the supervisor then kills the worker, and the
+//! gate is checked again right before the one rename that makes a result visible, so an
+//! abandoned job can never publish.
 
 use super::publish::{self, Published, SIDECAR_SUFFIX, STAGING_DIR};
 use super::scanset::StatSig;
+use super::supervise::{self, WorkerLimits, WorkerOutcome, WorkerRequest};
 use crate::recipe::Recipe;
-use crate::recipe::runner::Progress;
-use crate::report::Report;
 use crate::store::{ClaimedJob, Finish, Owner, StepRow, now_ms};
 use serde_json::json;
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::time::{Duration, Instant};
-
-/// Why processing failed, and whether trying again could help.
-#[derive(Debug, Clone)]
-pub struct ProcessFailure {
-    pub kind: String,
-    pub message: String,
-    pub transient: bool,
-}
-
-/// Runs a recipe on one scan, writing the result files into `out_dir`.
-pub type Processor = Arc<
-    dyn Fn(&Path, &Recipe, &Path, &Path, &dyn Progress) -> Result<Report, ProcessFailure>
-        + Send
-        + Sync,
->;
+use std::time::Instant;
 
 const RUNNING: u8 = 0;
 const PUBLISHING: u8 = 1;
@@ -57,6 +43,10 @@ impl PublishGate {
             .compare_exchange(RUNNING, ABANDONED, Ordering::SeqCst, Ordering::SeqCst)
             .is_ok()
     }
+    /// Whether the service has given up on the job (its worker is to be killed).
+    pub fn is_abandoned(&self) -> bool {
+        self.0.load(Ordering::SeqCst) == ABANDONED
+    }
 }
 
 /// Everything a job needs, owned, so it can move to its thread.
@@ -67,15 +57,12 @@ pub struct JobSpec {
     pub config_hash: String,
     pub owner: Owner,
     pub max_input_bytes: u64,
-    pub processor: Processor,
+    pub limits: WorkerLimits,
     pub gate: Arc<PublishGate>,
-    /// Test-only (`SCANMILL_TEST_STEP_DELAY_MS`): sleep this long at every stage, so that
-    /// tests can interrupt a job deterministically.
-    pub stage_delay: Option<Duration>,
 }
 
 /// What a finished thread reports.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub enum JobResult {
     Finished {
         finish: Finish,
@@ -83,20 +70,6 @@ pub enum JobResult {
     },
     /// The gate was closed (timeout or shutdown); nothing was published.
     Abandoned,
-}
-
-struct JobProgress {
-    job_id: i64,
-    delay: Option<Duration>,
-}
-
-impl Progress for JobProgress {
-    fn stage(&self, index: usize, total: usize, name: &str) {
-        tracing::debug!(job_id = self.job_id, index, total, stage = name, "stage");
-        if let Some(d) = self.delay {
-            std::thread::sleep(d);
-        }
-    }
 }
 
 fn failure(kind: &str, message: impl Into<String>, transient: bool) -> Finish {
@@ -213,19 +186,30 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         ));
     }
     let started_ms = now_ms();
-    let progress = JobProgress {
+    let request = WorkerRequest {
         job_id: job.id,
-        delay: spec.stage_delay,
+        input: primary.clone(),
+        recipe: spec.recipe_path.clone(),
+        recipe_hash: job.recipe_hash.clone(),
+        out: scan_dir.clone(),
+        limits: spec.limits,
     };
-    let report = match (spec.processor)(
-        &primary,
-        &spec.recipe,
-        &spec.recipe_path,
-        &scan_dir,
-        &progress,
-    ) {
-        Ok(r) => r,
-        Err(f) => {
+    let mut on_stage = |index: usize, total: usize, name: &str| {
+        tracing::debug!(job_id = job.id, index, total, stage = name, "stage");
+    };
+    let report = match supervise::run(&request, &spec.gate, &mut on_stage) {
+        WorkerOutcome::Done(r, wall) => {
+            // What isolation costs: starting the worker, loading the recipe there, and
+            // handing the report over, beyond the processing itself.
+            let isolation_ms = wall.as_secs_f64() * 1e3 - r.total_ms;
+            tracing::info!(isolation_ms, process_ms = r.total_ms, "worker finished");
+            *r
+        }
+        WorkerOutcome::Abandoned => {
+            tracing::warn!("abandoned while running; worker killed");
+            return None;
+        }
+        WorkerOutcome::Failed(f) => {
             // An input that vanished or changed while being read is not the scan's fault.
             if let Err(changed) = check_inputs(job) {
                 return Some(*changed);

@@ -19,7 +19,7 @@ use super::wedges::WedgeInterner;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use rustc_hash::FxHashMap as HashMap;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// One face corner as a file states it: indices into the position, texture-coordinate and
@@ -61,7 +61,7 @@ impl Default for LoadOptions {
 }
 
 /// What loading found and repaired. Shown by `inspect` and kept in reports.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct LoadReport {
     pub format: String,
     /// Counts as stored in the file.
@@ -111,6 +111,11 @@ pub struct MeshBuilder {
     /// Empty, or one per face.
     pub face_materials: Vec<Index>,
     pub materials: Vec<Material>,
+    /// `(face, further copies)`: copies of a face that a reader counted instead of storing
+    /// (see the PLY strip reader). Each copy shares its face's fate in the repair rules: a
+    /// copy of a kept face is a dropped duplicate, a copy of a dropped face is dropped for
+    /// the same reason.
+    pub face_repeats: Vec<(Index, u32)>,
     pub report: LoadReport,
 }
 
@@ -269,6 +274,13 @@ impl MeshBuilder {
             }
         }
         let mut dropped = [0usize; 4];
+        for &(f, copies) in &self.face_repeats {
+            let fate = match status[f as usize] {
+                FaceStatus::Kept => FaceStatus::Duplicate,
+                other => other,
+            };
+            dropped[fate as usize] += copies as usize;
+        }
         let mut kept = Vec::with_capacity(self.faces.len());
         for (f, s) in status.iter().enumerate() {
             dropped[*s as usize] += 1;

@@ -98,7 +98,7 @@ pub enum PreviewError {
 
 /// What the picture shows, for the report (distances relative to the input's bounding-box
 /// diagonal, in percent, as in the legend).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PreviewFigures {
     pub width: u32,
     pub height: u32,

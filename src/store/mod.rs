@@ -47,6 +47,23 @@ pub enum StoreError {
 
 pub type Result<T> = std::result::Result<T, StoreError>;
 
+impl StoreError {
+    /// Another connection holds the database's write lock (past `busy_timeout`): the
+    /// operation can be tried again later, nothing is wrong with the database.
+    pub fn is_busy(&self) -> bool {
+        matches!(
+            self,
+            StoreError::Sqlite {
+                source: rusqlite::Error::SqliteFailure(e, _),
+                ..
+            } if matches!(
+                e.code,
+                rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked
+            )
+        )
+    }
+}
+
 /// Unix time in milliseconds.
 pub fn now_ms() -> i64 {
     std::time::SystemTime::now()
@@ -610,8 +627,11 @@ impl Store {
         Ok(final_state)
     }
 
-    /// At start-up: jobs left `running` by a previous process go back to the queue, and
-    /// their attempt is not counted (a crash or power cut must not poison a job).
+    /// At start-up: jobs left `running` by a previous daemon process. Their attempt was
+    /// counted when it was claimed and stays counted: whatever took the daemon down while
+    /// they ran (a crash, the OOM killer, a power cut) may be the file itself, and a file
+    /// that does so every time must end quarantined rather than take the service down at
+    /// every start. Jobs with attempts left go back to the queue at once.
     pub fn recover_running(&mut self) -> Result<usize> {
         let now = now_ms();
         let path = self.path.clone();
@@ -621,16 +641,24 @@ impl Store {
         };
         let tx = self.immediate()?;
         tx.execute(
-            "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind='interrupted',
-                error='the daemon stopped while this attempt ran'
+            "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind='daemon_stopped',
+                error='the daemon stopped while this attempt ran (counted as an attempt)'
              WHERE outcome IS NULL AND job_id IN (SELECT id FROM job WHERE state='running')",
+            [now],
+        )
+        .map_err(sq)?;
+        tx.execute(
+            "UPDATE job SET state='quarantined', retryable=0, finished_at=?1, updated_at=?1,
+                lease_owner=NULL, error_kind='daemon_stopped',
+                error='the daemon stopped while this job ran, on each of its ' || attempts || ' attempts'
+             WHERE state='running' AND attempts >= max_attempts",
             [now],
         )
         .map_err(sq)?;
         let n = tx
             .execute(
-                "UPDATE job SET state='queued', attempts=max(attempts-1, 0), run_after=?1, updated_at=?1,
-                    lease_owner=NULL WHERE state='running'",
+                "UPDATE job SET state='queued', run_after=?1, updated_at=?1, lease_owner=NULL
+                 WHERE state='running'",
                 [now],
             )
             .map_err(sq)?;

@@ -189,16 +189,42 @@ fn transient_failures_back_off_then_quarantine_permanent_fail_at_once() {
 }
 
 #[test]
-fn recover_running_requeues_without_counting() {
+fn recover_running_counts_the_attempt_and_quarantines_at_the_limit() {
     let (_d, mut s) = open();
     s.enqueue(&job("k1", "a.ply")).unwrap();
     let c = s.claim(&owner()).unwrap().unwrap();
     assert_eq!(c.attempt, 1);
+    // The daemon died while the job ran (no finish): recovery keeps the attempt counted.
     assert_eq!(s.recover_running().unwrap(), 1);
     let c = s.claim(&owner()).unwrap().unwrap();
-    assert_eq!(c.attempt, 1, "the interrupted attempt is not counted");
+    assert_eq!(c.attempt, 2, "the interrupted attempt was counted");
     let shown = s.show(c.id).unwrap();
     assert_eq!(shown["attempts_log"][0]["outcome"], "interrupted");
+    // The second death reaches max_attempts (2 here): quarantined, not queued again.
+    assert_eq!(s.recover_running().unwrap(), 0);
+    assert!(s.claim(&owner()).unwrap().is_none());
+    let shown = s.show(c.id).unwrap();
+    assert_eq!(shown["state"], "quarantined", "{shown}");
+    assert_eq!(shown["error_kind"], "daemon_stopped", "{shown}");
+}
+
+#[test]
+fn a_graceful_interruption_is_not_counted() {
+    let (_d, mut s) = open();
+    s.enqueue(&job("k1", "a.ply")).unwrap();
+    let c = s.claim(&owner()).unwrap().unwrap();
+    let f = Finish::Interrupted {
+        reason: "daemon stopped before the job finished".into(),
+    };
+    assert_eq!(
+        s.finish(&c, &f, (1.0, 1.0), 0.0).unwrap(),
+        FinalState::Requeued
+    );
+    let c = s.claim(&owner()).unwrap().unwrap();
+    assert_eq!(
+        c.attempt, 1,
+        "a drain at shutdown does not use up an attempt"
+    );
 }
 
 #[test]

@@ -168,6 +168,29 @@ impl Lab {
     }
 
     /// Visible (non-hidden) entries of the output tree, relative, sorted.
+    /// PIDs of `scanmill worker` processes working for this lab (their staging folder is
+    /// under this lab's outbox).
+    pub fn worker_pids(&self) -> Vec<u32> {
+        let needle = self.outbox().to_string_lossy().into_owned();
+        let mut pids = Vec::new();
+        for entry in std::fs::read_dir("/proc").unwrap().flatten() {
+            let Ok(pid) = entry.file_name().to_string_lossy().parse::<u32>() else {
+                continue;
+            };
+            let Ok(cmdline) = std::fs::read(entry.path().join("cmdline")) else {
+                continue;
+            };
+            let args: Vec<String> = cmdline
+                .split(|&b| b == 0)
+                .map(|a| String::from_utf8_lossy(a).into_owned())
+                .collect();
+            if args.iter().any(|a| a == "worker") && args.iter().any(|a| a.contains(&needle)) {
+                pids.push(pid);
+            }
+        }
+        pids
+    }
+
     pub fn visible_outputs(&self) -> Vec<String> {
         let mut out = Vec::new();
         let mut stack = vec![self.outbox()];

@@ -52,6 +52,11 @@ struct Raw {
     /// Texture number per face (`texnumber` or Artec `tx`); empty when the file has none.
     face_textures: Vec<u32>,
     strip_triangles: Vec<[Index; 3]>,
+    /// `(index in strip_triangles, further copies)` of strip triangles that repeat an earlier
+    /// one (same three vertices, either orientation); the copies are not stored.
+    strip_repeats: Vec<(Index, u32)>,
+    /// Triangles the strips produced, repeats included.
+    strip_triangle_count: usize,
     /// Artec multi-texture vertices and faces.
     multi_uvs: Vec<DVec2>,
     multi_face_texture: Vec<u32>,
@@ -506,6 +511,12 @@ fn read_faces<S: Source>(
 /// Unrolls triangle strips: triangle j of a strip is (v[j], v[j+1], v[j+2]), with the first
 /// two swapped for odd j so that all keep the strip's orientation; -1 restarts a strip.
 /// Triangles that repeat an index are the zero-area joins strippers insert; they are dropped.
+///
+/// A strip spends one index per triangle, so a few megabytes of one-byte indices can name
+/// tens of millions of triangles; over few vertices nearly all are copies, which the repair
+/// rules drop anyway. Copies of a triangle already unrolled are therefore only counted here
+/// (`strip_repeats`, charged to the first copy's fate by [`MeshBuilder::finish`]), so that
+/// memory follows the distinct triangles, not the bytes.
 fn read_strips<S: Source>(
     path: &Path,
     element: &Element,
@@ -519,6 +530,9 @@ fn read_strips<S: Source>(
             raw.skipped.push(format!("tristrips.{}", p.name));
         }
     }
+    // Sorted vertices → (index in strip_triangles, further copies).
+    let mut seen: rustc_hash::FxHashMap<[Index; 3], (Index, u32)> = Default::default();
+    let first = raw.strip_triangles.len();
     for_each(path, element, src, |src, _| {
         for p in &element.properties {
             let PropertyKind::List { count, item } = p.kind else {
@@ -530,7 +544,6 @@ fn read_strips<S: Source>(
                 continue;
             }
             let n = src.list_len(count, item)?;
-            raw.strip_triangles.reserve(n);
             let (mut a, mut b, mut len) = (0, 0, 0usize);
             for _ in 0..n {
                 let value = src.value(item)?;
@@ -546,7 +559,16 @@ fn read_strips<S: Source>(
                         [b, a, c]
                     };
                     if a != b && b != c && a != c {
-                        raw.strip_triangles.push(tri);
+                        raw.strip_triangle_count += 1;
+                        let mut key = tri;
+                        key.sort_unstable();
+                        let next = raw.strip_triangles.len() as Index;
+                        let entry = seen.entry(key).or_insert((next, 0));
+                        if entry.0 == next {
+                            raw.strip_triangles.push(tri);
+                        } else {
+                            entry.1 += 1;
+                        }
                     }
                 }
                 (a, b) = (b, c);
@@ -554,7 +576,14 @@ fn read_strips<S: Source>(
             }
         }
         Ok(())
-    })
+    })?;
+    raw.strip_repeats.extend(
+        seen.into_values()
+            .filter(|(_, copies)| *copies > 0)
+            .map(|(t, copies)| (t - first as Index, copies)),
+    );
+    raw.strip_repeats.sort_unstable();
+    Ok(())
 }
 
 fn read_multi_vertices<S: Source>(
@@ -783,7 +812,7 @@ fn assemble(
     b.report.file_faces = faces;
     b.report.file_normals = raw.normals.len();
     b.report.file_texcoords = vertex_uv_count + raw.corner_uv_values.len();
-    b.report.strip_triangles = raw.strip_triangles.len();
+    b.report.strip_triangles = raw.strip_triangle_count;
     b.report.skipped = std::mem::take(&mut raw.skipped);
     b.report.decoded_textures = decoded_textures;
 
@@ -828,6 +857,12 @@ fn assemble(
             }
         }
     }
+    let first_strip = b.faces.len() as Index;
+    b.face_repeats = raw
+        .strip_repeats
+        .iter()
+        .map(|&(t, copies)| (first_strip + t, copies))
+        .collect();
     for tri in &raw.strip_triangles {
         b.faces.push(tri.map(|v| corner(v, NONE)));
         if with_materials {

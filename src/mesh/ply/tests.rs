@@ -581,3 +581,35 @@ fn writer_copies_present_textures() {
     let written = write(&mesh, &beside, PlyEncoding::Ascii).unwrap();
     assert_eq!(written, vec![beside, src.path().join("skin.png")]);
 }
+
+#[test]
+fn writer_keeps_copied_textures_apart_from_reserved_names() {
+    let src = tempfile::tempdir().unwrap();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([9, 9, 9]))
+        .save(src.path().join("out.preview.png"))
+        .unwrap();
+    let text = SQUARE_ASCII.replace(
+        "comment a unit",
+        "comment TextureFile out.preview.png\ncomment a unit",
+    );
+    let (mesh, _) = read(
+        &src.path().join("in.ply"),
+        text.as_bytes(),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let path = out.path().join("out.ply");
+    let reserved = ["out.preview.png".to_string()];
+    let written = write_reserving(&mesh, &path, PlyEncoding::Ascii, &reserved).unwrap();
+    assert_eq!(
+        written,
+        vec![path.clone(), out.path().join("out.preview_2.png")]
+    );
+    assert!(!out.path().join("out.preview.png").exists());
+    let header = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        header.contains("comment TextureFile out.preview_2.png\n"),
+        "{header}"
+    );
+}
