@@ -126,6 +126,12 @@ fn mtl_seeds() -> Vec<Seed> {
         escape("not-an-image", "map_Kd bad.png"),
         escape("nul", "map_Kd tex\0.png"),
         escape("dot-dot-inside", "map_Kd sub/../tex.png"),
+        // A map line repeated 100k times (2.3 MB): resolving each and looking each up on
+        // output took minutes before they were done once per name (campaign seed 2026).
+        seed(
+            "many-map-lines",
+            format!("newmtl m0\n{}", "map_Bump sub/inner.png\n".repeat(100_000)),
+        ),
     ]
 }
 
