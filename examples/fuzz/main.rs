@@ -60,8 +60,10 @@ struct Args {
     /// Where findings are saved (<out>/<target>/<hash>.<ext> with a .txt beside).
     #[arg(long, default_value = "fuzz-findings")]
     out: PathBuf,
-    /// Per-input wall limit; a worker silent this long is a hang.
-    #[arg(long, default_value_t = 10.0)]
+    /// Per-input wall limit; a worker silent this long is a hang. The slowest regular inputs
+    /// (a 2 MB MTL of 100k map lines, a gzip bomb refused at its limit) take about 3 s on an
+    /// idle core; the margin is for a machine shared with compilers.
+    #[arg(long, default_value_t = 30.0)]
     timeout_secs: f64,
     /// Per-worker heap limit.
     #[arg(long, default_value_t = 1024)]
