@@ -230,12 +230,12 @@ impl DaemonConfig {
     pub fn from_toml(text: &str, path: &Path) -> Result<DaemonConfig, ConfigError> {
         toml::from_str(text).map_err(|e| ConfigError::Parse {
             path: path.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
+            message: crate::recipe::toml_error_message(text, &e),
         })
     }
 
     pub fn from_path(path: &Path) -> Result<DaemonConfig, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        let text = crate::recipe::read_settings_file(path).map_err(|source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
         })?;

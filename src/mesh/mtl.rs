@@ -6,7 +6,8 @@ use super::files;
 use super::limits::{InputLimits, Limit};
 use super::model::{MapFile, Material, Texture};
 use super::texture::{self, is_map_statement, normalise_name, split_map_arguments};
-use std::path::Path;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
 
 /// A material as the MTL states it, before its files are resolved.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -145,13 +146,23 @@ pub fn load(mtl_path: &Path, scan_dir: &Path, limits: &InputLimits) -> Result<Ve
     let bytes = files::read_whole(mtl_path, limits.max_mtl_bytes, Limit::MtlBytes)?;
     let base_dir = texture::folder_of(mtl_path);
     let cap = (limits.max_file_bytes, Limit::FileBytes);
-    let resolve = |name: &str| texture::resolve_in_scan(scan_dir, &base_dir, name, mtl_path, cap);
+    // Each distinct name is resolved once: resolving costs several system calls, and an MTL
+    // may repeat one map line a hundred thousand times (found by fuzzing: 16 s for 2 MB).
+    let mut resolved: HashMap<String, PathBuf> = HashMap::new();
+    let mut resolve = |name: &str| -> Result<PathBuf> {
+        if let Some(path) = resolved.get(name) {
+            return Ok(path.clone());
+        }
+        let path = texture::resolve_in_scan(scan_dir, &base_dir, name, mtl_path, cap)?.path;
+        resolved.insert(name.to_string(), path.clone());
+        Ok(path)
+    };
     let mut out = Vec::new();
     for m in parse(mtl_path, &bytes)? {
         let diffuse_texture = match &m.diffuse {
             Some((name, _line)) => Some(Texture {
                 name: name.clone(),
-                path: resolve(name)?.path,
+                path: resolve(name)?,
                 size: None,
             }),
             None => None,
@@ -162,7 +173,7 @@ pub fn load(mtl_path: &Path, scan_dir: &Path, limits: &InputLimits) -> Result<Ve
             if let Some((_, _, file)) = map_file_of(text) {
                 map_files.push(MapFile {
                     statement,
-                    path: resolve(file)?.path,
+                    path: resolve(file)?,
                 });
             }
         }

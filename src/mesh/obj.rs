@@ -29,7 +29,7 @@ use super::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 use super::error::{Location, MeshError, Result};
 use super::files;
 use super::limits::{InputLimits, Limit};
-use super::model::{Index, Material, Mesh, Texture};
+use super::model::{Index, MapFile, Material, Mesh, Texture};
 use super::{mtl, texture};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -1029,13 +1029,17 @@ fn plan_material_files(mesh: &Mesh, mut names: texture::OutputNames) -> Material
         text.push_str("\nnewmtl ");
         text.push_str(&m.name);
         text.push('\n');
+        // Looked up by statement once per material: a search per statement is quadratic, and
+        // an MTL of 90k map lines kept the writer busy for minutes (found by fuzzing).
+        let map_files: HashMap<usize, &MapFile> =
+            m.map_files.iter().map(|f| (f.statement, f)).collect();
         for (i, statement) in m.other_statements.iter().enumerate() {
             let Some((keyword, options, file)) = mtl::map_file_of(statement) else {
                 text.push_str(statement);
                 text.push('\n');
                 continue;
             };
-            let Some(source) = m.map_files.iter().find(|f| f.statement == i) else {
+            let Some(source) = map_files.get(&i) else {
                 tracing::warn!(
                     "material {:?}: {keyword} {file:?} was not loaded from a file; written as is, not copied",
                     m.name

@@ -234,6 +234,61 @@ fn error_line(text: &str, header_end: usize, message: &str) -> Option<usize> {
     })
 }
 
+/// Largest recipe or configuration file read: they are a few KiB; the cap bounds what a
+/// wrong path (`recipe = "/dev/zero"`) can cost.
+pub const MAX_SETTINGS_FILE_BYTES: u64 = 1 << 20;
+
+/// Reads a recipe or configuration file as UTF-8 text: a regular file (a FIFO or device is
+/// refused before it is opened, and again from the open file, which is opened non-blocking so
+/// that a FIFO swapped in between cannot block) of at most [`MAX_SETTINGS_FILE_BYTES`].
+pub fn read_settings_file(path: &Path) -> std::io::Result<String> {
+    use std::io::{Error, ErrorKind, Read};
+    use std::os::unix::fs::OpenOptionsExt;
+    let regular = |meta: &std::fs::Metadata| {
+        if meta.is_file() {
+            Ok(())
+        } else {
+            Err(Error::new(
+                ErrorKind::InvalidInput,
+                "not a regular file; refusing to read it",
+            ))
+        }
+    };
+    regular(&std::fs::metadata(path)?)?;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK | libc::O_NOCTTY)
+        .open(path)?;
+    regular(&file.metadata()?)?;
+    let mut bytes = Vec::new();
+    file.take(MAX_SETTINGS_FILE_BYTES + 1)
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_SETTINGS_FILE_BYTES {
+        return Err(Error::new(
+            ErrorKind::InvalidData,
+            format!("larger than {MAX_SETTINGS_FILE_BYTES} bytes; refusing to read it"),
+        ));
+    }
+    String::from_utf8(bytes)
+        .map_err(|_| Error::new(ErrorKind::InvalidData, "stream did not contain valid UTF-8"))
+}
+
+/// A TOML error as one line, "line 5: unknown variant `sharpen`, expected one of …": the
+/// toml crate's own rendering spans several lines (a source excerpt with a caret), which would
+/// break a log record or a job's error text in two.
+pub fn toml_error_message(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim().replace(['\n', '\r'], " ");
+    match e.span() {
+        Some(span) => {
+            // Bytes, not `str` slicing: a span need not start on a character boundary.
+            let before = &text.as_bytes()[..span.start.min(text.len())];
+            let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+            format!("line {line}: {message}")
+        }
+        None => message,
+    }
+}
+
 /// A parsed, validated recipe.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Recipe {
@@ -252,7 +307,7 @@ pub struct Recipe {
 
 impl Recipe {
     pub fn from_path(path: &Path) -> Result<Recipe, RecipeError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RecipeError::Io {
+        let text = read_settings_file(path).map_err(|source| RecipeError::Io {
             path: path.to_path_buf(),
             source,
         })?;
@@ -262,14 +317,9 @@ impl Recipe {
     /// Parses recipe text; `path` is only used in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Recipe, RecipeError> {
         let line_of = |offset: usize| text[..offset.min(text.len())].matches('\n').count() + 1;
-        // One line: "line 5: unknown variant `sharpen`, expected one of …".
         let file: RecipeFile = toml::from_str(text).map_err(|e| RecipeError::Parse {
             path: path.to_path_buf(),
-            message: match e.span() {
-                Some(span) => format!("line {}: {}", line_of(span.start), e.message().trim()),
-                None => e.message().trim().to_string(),
-            }
-            .replace('\n', " "),
+            message: toml_error_message(text, &e),
         })?;
         let parse_error = |line: usize, message: String| RecipeError::Parse {
             path: path.to_path_buf(),
