@@ -4,7 +4,7 @@
 use super::files::SpecialKind;
 use super::limits::Limit;
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Where in a file something was found.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -30,27 +30,44 @@ impl fmt::Display for Location {
     }
 }
 
+/// Longest piece of input (a token, a name, a header keyword) an error repeats: an error is
+/// one line, and a hostile file must not turn it into megabytes of log.
+const MAX_ECHO: usize = 256;
+
+/// Input-derived text as an error shows it: control characters escaped, cut at [`MAX_ECHO`].
+fn shown(text: &str) -> String {
+    crate::text::bounded(text, MAX_ECHO)
+}
+
+/// A path as an error shows it: escaped byte for byte, cut at four times [`MAX_ECHO`].
+fn shown_path(path: &Path) -> String {
+    crate::text::bounded(&crate::text::escape_path(path), 4 * MAX_ECHO)
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", shown_path(.path))]
     Io {
         path: PathBuf,
         #[source]
         source: std::io::Error,
     },
-    #[error("{path}: {at}: {message}")]
+    #[error("{}: {at}: {}", shown_path(.path), shown(.message))]
     Malformed {
         path: PathBuf,
         at: Location,
         message: String,
     },
-    #[error("{path}: {at}: coordinate is not a finite number: {value}")]
+    #[error("{}: {at}: coordinate is not a finite number: {}", shown_path(.path), shown(.value))]
     NonFinite {
         path: PathBuf,
         at: Location,
         value: String,
     },
-    #[error("{path}: {at}: {kind} index {index} is out of range (the file has {count})")]
+    #[error(
+        "{}: {at}: {kind} index {index} is out of range (the file has {count})",
+        shown_path(.path)
+    )]
     IndexOutOfRange {
         path: PathBuf,
         at: Location,
@@ -58,7 +75,7 @@ pub enum MeshError {
         index: i64,
         count: usize,
     },
-    #[error("{path}: texture {texture}: {message}")]
+    #[error("{}: texture {}: {}", shown_path(.path), shown(.texture), shown(.message))]
     Texture {
         path: PathBuf,
         texture: String,
@@ -67,7 +84,10 @@ pub enum MeshError {
     /// A file the scan names (`mtllib`, `map_*`, PLY `TextureFile`) that lies outside the
     /// scan's folder once `..` and symlinks are resolved; `resolved` is where it leads.
     #[error(
-        "{path}: texture path {texture:?} resolves outside the scan's folder ({resolved}); refusing"
+        "{}: texture path \"{}\" resolves outside the scan's folder ({}); refusing",
+        shown_path(.path),
+        shown(.texture),
+        shown_path(.resolved)
     )]
     PathEscapes {
         path: PathBuf,
@@ -75,10 +95,10 @@ pub enum MeshError {
         resolved: PathBuf,
     },
     /// A FIFO, device, socket or folder where a file was expected; never opened for reading.
-    #[error("{path} is {kind}; refusing to read it")]
+    #[error("{} is {kind}; refusing to read it", shown_path(.path))]
     SpecialFile { path: PathBuf, kind: SpecialKind },
     /// The input is above one of the configured [`InputLimits`](super::limits::InputLimits).
-    #[error("{path}: {what} exceeds {limit} = {value}")]
+    #[error("{}: {} exceeds {limit} = {value}", shown_path(.path), shown(.what))]
     TooLarge {
         path: PathBuf,
         what: String,
@@ -87,7 +107,7 @@ pub enum MeshError {
     },
     /// Writing an output file failed (full disk, permissions, ...): the output's fault, not
     /// the input's.
-    #[error("{path}: cannot write: {source}")]
+    #[error("{}: cannot write: {source}", shown_path(.path))]
     Write {
         path: PathBuf,
         #[source]
@@ -95,9 +115,12 @@ pub enum MeshError {
     },
     /// `reason` says why, e.g. "the file has no face element" or which repair rules dropped
     /// every face.
-    #[error("{path}: the file holds no usable triangles: {reason}")]
+    #[error("{}: the file holds no usable triangles: {}", shown_path(.path), shown(.reason))]
     NoTriangles { path: PathBuf, reason: String },
-    #[error("{path}: not a mesh file scanmill reads (expected .obj, .ply, optionally .gz)")]
+    #[error(
+        "{}: not a mesh file scanmill reads (expected .obj, .ply, optionally .gz)",
+        shown_path(.path)
+    )]
     UnknownFormat { path: PathBuf },
 }
 

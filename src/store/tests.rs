@@ -338,11 +338,17 @@ fn a_huge_failure_message_is_cut_when_recorded() {
         .connection()
         .query_row("SELECT error FROM job WHERE id=?1", [c.id], |r| r.get(0))
         .unwrap();
-    assert!(stored.len() <= MAX_ERROR_BYTES + "…".len(), "{}", stored.len());
+    assert!(
+        stored.len() <= MAX_ERROR_BYTES + "…".len(),
+        "{}",
+        stored.len()
+    );
     assert!(stored.ends_with('…'));
     let logged: String = s
         .connection()
-        .query_row("SELECT error FROM attempt WHERE job_id=?1", [c.id], |r| r.get(0))
+        .query_row("SELECT error FROM attempt WHERE job_id=?1", [c.id], |r| {
+            r.get(0)
+        })
         .unwrap();
     assert_eq!(logged, stored);
     assert_eq!(shown["state"], "failed");
