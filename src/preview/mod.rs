@@ -94,7 +94,18 @@ pub enum PreviewError {
     Distance(#[from] MetricsError),
     #[error("{path}: cannot write preview: {message}")]
     Write { path: PathBuf, message: String },
+    /// The triangles overlap so deeply that drawing them would take far longer than the
+    /// rest of the job (an overlapping triangle soup).
+    #[error(
+        "preview: the {panel}'s triangles would be drawn {depth} times over on average \
+         (more than {MAX_OVERDRAW}); not drawn"
+    )]
+    Overdraw { panel: &'static str, depth: u64 },
 }
+
+/// Most pixel tests per image pixel a panel may cost (see [`raster::work_bound`]). Scans are
+/// drawn with a few tests per pixel; only overlapping soups come near this.
+pub const MAX_OVERDRAW: u64 = 64;
 
 /// What the picture shows, for the report (distances relative to the input's bounding-box
 /// diagonal, in percent, as in the legend).
@@ -233,7 +244,16 @@ fn render_with(
         ),
     ];
     for (i, surface) in panels.iter().enumerate() {
-        draw_panel(surface, &camera, ss, size, &mut image, i as u32 * size);
+        let panel = if i == 0 { "input" } else { "result" };
+        draw_panel(
+            surface,
+            panel,
+            &camera,
+            ss,
+            size,
+            &mut image,
+            i as u32 * size,
+        )?;
     }
 
     let k = layout.k;
@@ -278,12 +298,13 @@ fn render_with(
 /// Draws one surface into the panel whose left edge is column `x0`.
 fn draw_panel(
     surface: &Surface,
+    panel: &'static str,
     camera: &Camera,
     ss: u32,
     size: u32,
     image: &mut RgbImage,
     x0: u32,
-) {
+) -> Result<(), PreviewError> {
     let mesh = surface.mesh;
     let cam = camera.scaled(ss as f64);
     let n = (size * ss) as usize;
@@ -295,6 +316,11 @@ fn draw_panel(
     let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
         .map(|t| mesh.triangle_vertices(t))
         .collect();
+    let depth = raster::work_bound(&vertices, &triangles, n, n) / (n * n) as u64;
+    tracing::debug!(panel, depth, "preview overdraw");
+    if depth > MAX_OVERDRAW {
+        return Err(PreviewError::Overdraw { panel, depth });
+    }
     let g = raster::rasterise(&vertices, &triangles, n, n);
     drop((vertices, triangles));
     let towards_light = -cam.forward;
@@ -333,6 +359,7 @@ fn draw_panel(
             image.put_pixel(x0 + col as u32, row as u32, Rgb(p));
         }
     }
+    Ok(())
 }
 
 /// The colour bar along the bottom band of the panel starting at column `x0`: the ramp,

@@ -116,6 +116,33 @@ pub fn rasterise(
     }
 }
 
+/// An upper bound of the pixel tests [`rasterise`] makes: the pixels of every usable
+/// triangle's bounding box, clipped to the image. A mesh drawn once over its silhouette
+/// makes a few times the image's pixels; overlapping triangle soups make thousands of times,
+/// which is what this lets a caller refuse before drawing.
+pub fn work_bound(
+    vertices: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    width: usize,
+    height: usize,
+) -> u64 {
+    triangles
+        .iter()
+        .filter_map(|corners| {
+            let (first, last) = row_span(vertices, corners, height)?;
+            let xs = corners.map(|i| vertices[i as usize][0]);
+            let lo = (xs.iter().copied().fold(f64::INFINITY, f64::min) - 0.5)
+                .ceil()
+                .max(0.0);
+            let hi = (xs.iter().copied().fold(f64::NEG_INFINITY, f64::max) - 0.5)
+                .floor()
+                .min(width as f64 - 1.0);
+            let columns = if lo <= hi { (hi - lo) as u64 + 1 } else { 0 };
+            Some(columns * (last - first + 1) as u64)
+        })
+        .sum()
+}
+
 /// The rows (inclusive) whose pixel centres the triangle may cover, `None` if none or if
 /// the triangle is unusable.
 fn row_span(vertices: &[[f64; 3]], corners: &[u32; 3], height: usize) -> Option<(usize, usize)> {

@@ -192,3 +192,30 @@ fn empty_meshes_are_errors_not_panics() {
     assert!(render(&Mesh::default(), &m, &PreviewOptions::default()).is_err());
     assert!(render(&m, &Mesh::default(), &PreviewOptions::default()).is_err());
 }
+
+#[test]
+fn overlapping_layers_beyond_the_overdraw_budget_are_not_drawn() {
+    let sphere = uv_sphere(1.0, 16, 32);
+    let mut stack = sphere.clone();
+    for _ in 0..150 {
+        stack.triangles.extend_from_slice(&sphere.triangles);
+    }
+    assert!(render(&sphere, &sphere, &options(128, 1)).is_ok());
+    match render(&sphere, &stack, &options(128, 1)) {
+        Err(PreviewError::Overdraw { panel, depth }) => {
+            assert_eq!(panel, "result");
+            assert!(depth > MAX_OVERDRAW, "{depth}");
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn the_work_bound_counts_clipped_bounding_boxes() {
+    // A right triangle over 10 × 10 pixel centres, half of it outside a 5-wide image.
+    let vertices = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
+    assert_eq!(raster::work_bound(&vertices, &[[0, 1, 2]], 5, 20), 50);
+    assert_eq!(raster::work_bound(&vertices, &[[0, 1, 2]], 20, 20), 100);
+    // Out-of-range corners and triangles outside the image cost nothing.
+    assert_eq!(raster::work_bound(&vertices, &[[0, 1, 7]], 20, 20), 0);
+}
