@@ -142,8 +142,8 @@ fn load_corpus(args: &Args, target: Target) -> Vec<Entry> {
 }
 
 fn worker_command(args: &Args, target: Target, scratch: &Path) -> Command {
-    let exe = std::env::current_exe().expect("the fuzzer's own path");
-    let mut cmd = Command::new(exe);
+    // The running binary itself, even if a build replaced the file since it started.
+    let mut cmd = Command::new("/proc/self/exe");
     cmd.env(oracle::ENV_TARGET, target.name())
         .env(oracle::ENV_SCRATCH, scratch)
         .env(oracle::ENV_MEMORY, (args.memory_mb << 20).to_string())
