@@ -20,7 +20,7 @@ pub enum ConfigSource {
 impl std::fmt::Display for ConfigSource {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            ConfigSource::File(p) => write!(f, "{}", p.display()),
+            ConfigSource::File(p) => write!(f, "{}", crate::text::escape_path(p)),
             ConfigSource::BuiltIn => write!(f, "built-in default"),
         }
     }
@@ -363,7 +363,7 @@ impl DaemonConfig {
         self.check_dir("state_dir", &self.state_dir, &mut problems);
         let state = absolute(&self.state_dir);
         for (i, w) in self.watch.iter().enumerate() {
-            let name = format!("watch[{i}] ({})", w.path.display());
+            let name = format!("watch[{i}] ({})", crate::text::escape_path(&w.path));
             if !(w.quiet_period_secs.is_finite()
                 && (0.05..=MAX_SECS).contains(&w.quiet_period_secs))
             {
@@ -405,7 +405,7 @@ impl DaemonConfig {
                 problems.push(format!(
                     "{name}: output {} and the watched folder must not contain one another \
                      (the daemon would process its own output)",
-                    w.output.display()
+                    crate::text::escape_path(&w.output)
                 ));
             }
             if state.starts_with(&root) || resolved(&state).starts_with(&real_root) {
@@ -418,7 +418,7 @@ impl DaemonConfig {
                 if o.starts_with(&root) || root.starts_with(&o) {
                     problems.push(format!(
                         "{name} and watch[{j}] ({}) overlap; watched folders must be disjoint",
-                        other.path.display()
+                        crate::text::escape_path(&other.path)
                     ));
                 }
                 if absolute(&other.output).starts_with(&root)
@@ -426,7 +426,7 @@ impl DaemonConfig {
                 {
                     problems.push(format!(
                         "watch[{j}]: output is inside watched folder {}",
-                        w.path.display()
+                        crate::text::escape_path(&w.path)
                     ));
                 }
             }
@@ -440,7 +440,10 @@ impl DaemonConfig {
     fn check_dir(&self, name: &str, path: &Path, problems: &mut Vec<String>) {
         match std::fs::metadata(path) {
             Ok(m) if m.is_dir() => {}
-            Ok(_) => problems.push(format!("{name}: {} is not a folder", path.display())),
+            Ok(_) => problems.push(format!(
+                "{name}: {} is not a folder",
+                crate::text::escape_path(path)
+            )),
             Err(_) if self.create_missing_dirs => {
                 // It will be created: its nearest existing ancestor must be a folder.
                 let mut ancestor = absolute(path);
@@ -450,10 +453,13 @@ impl DaemonConfig {
                     }
                 }
                 if !ancestor.is_dir() {
-                    problems.push(format!("{name}: cannot create {}", path.display()));
+                    problems.push(format!(
+                        "{name}: cannot create {}",
+                        crate::text::escape_path(path)
+                    ));
                 }
             }
-            Err(e) => problems.push(format!("{name}: {}: {e}", path.display())),
+            Err(e) => problems.push(format!("{name}: {}: {e}", crate::text::escape_path(path))),
         }
     }
 
