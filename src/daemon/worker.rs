@@ -107,11 +107,7 @@ pub fn run(spec: JobSpec) -> JobResult {
         Ok(Some(finish)) => JobResult::Finished { finish, wall_ms },
         Ok(None) => JobResult::Abandoned,
         Err(panic) => {
-            let message = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown panic".into());
+            let message = panic_message(panic.as_ref());
             tracing::error!("job panicked: {message}");
             JobResult::Finished {
                 finish: failure("panic", format!("internal error (panic): {message}"), false),
@@ -353,6 +349,15 @@ pub fn output_stem(input: &Path) -> String {
         Some((stem, _)) if !stem.is_empty() => stem.to_string(),
         _ => name.to_string(),
     }
+}
+
+/// The text a panic carried (`panic!` with a literal or a formatted message).
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
 }
 
 fn boxed_failure(kind: &str, message: impl Into<String>, transient: bool) -> Box<Finish> {

@@ -7,6 +7,7 @@
 //! memory, a signal) ends this process only, and the daemon records it as the job's failure.
 
 use super::protocol::{Event, Line};
+use super::worker::panic_message;
 use crate::config::load_recipe;
 use crate::mesh::InputLimits;
 use crate::process::{ProcessError, ProcessOptions, process_scan_with_options};
@@ -140,11 +141,7 @@ pub fn run(args: WorkerArgs) -> u8 {
     test_hooks::inject_fault(&args.input);
     let event = std::panic::catch_unwind(AssertUnwindSafe(|| run_job(&args, start)))
         .unwrap_or_else(|panic| {
-            let message = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown panic".into());
+            let message = panic_message(panic.as_ref());
             tracing::error!("job panicked: {message}");
             Event::Failed {
                 kind: "panic".into(),
