@@ -10,6 +10,7 @@ use hostile_shapes::{fan, fan_with_seams, soup, stacked};
 use scanmill::mesh::{LoadOptions, Mesh, load};
 use scanmill::metrics::bvh::{BUDGET_PER_LEVEL, TriangleBvh};
 use scanmill::metrics::surface::{counterparts, sample_surface};
+use scanmill::metrics::topology::ReferenceTopology;
 use scanmill::ops::decimate::quadric::Weights;
 use scanmill::ops::decimate::work::{Config, Work};
 use scanmill::ops::decimate::{
@@ -108,6 +109,38 @@ fn searches_on_stacked_triangles_cost_n_log_n() {
 #[test]
 fn searches_on_a_fan_cost_n_log_n() {
     assert_n_log_n("fan", fan, true);
+}
+
+/// Distances measured by the crack metric's probes at the midpoints of every edge of `mesh`
+/// (in a soup, every edge is a boundary edge), against `mesh` itself as the reference.
+fn crack_probe_work(mesh: &Mesh) -> u64 {
+    let reference = ReferenceTopology::of(mesh, 2.0);
+    let mut measured = 0;
+    for t in 0..mesh.triangles.len() {
+        let [a, b, c] = mesh.triangle_positions(t);
+        for (p, q) in [(a, b), (b, c), (c, a)] {
+            let probe = reference.probe((p + q) * 0.5);
+            assert!(probe.near);
+            measured += u64::from(probe.measured);
+        }
+    }
+    measured
+}
+
+/// The crack metric on a soup of large overlapping triangles, where every edge's box holds
+/// most query points: its work grows near linearly (it grew with the square before).
+#[test]
+fn crack_probes_on_a_soup_are_near_linear() {
+    let n = 2000;
+    let (a, b) = (
+        crack_probe_work(&soup(n, 1)),
+        crack_probe_work(&soup(4 * n, 1)),
+    );
+    let ratio = b as f64 / a as f64;
+    assert!(
+        ratio < 6.0,
+        "{a} distances for {n} triangles, {b} for 4x: ratio {ratio:.2}"
+    );
 }
 
 fn load_scan(rel: &str) -> Mesh {

@@ -449,6 +449,17 @@ fn box_distance_squared(n: &Node, p: DVec3) -> f64 {
     d.length_squared()
 }
 
+/// The distance from `p` to the segment `a b` (a point when `a == b`).
+pub fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ab = b - a;
+    let t = if ab.length_squared() > 0.0 {
+        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * t).distance(p)
+}
+
 /// The point of triangle `a b c` closest to `p`, and its barycentric weights, by the
 /// Voronoi-region case analysis (Ericson, *Real-Time Collision Detection*, §5.1.5): every
 /// corner and edge region is tested before the interior, so a degenerate triangle still

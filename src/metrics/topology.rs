@@ -10,10 +10,11 @@
 //! farther than that from any border.
 
 use crate::mesh::{Mesh, Topology, TopologyCounts, summary};
+use crate::metrics::bvh::segment_distance;
 use glam::DVec3;
+use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::math::Vector as PVector;
-use parry3d_f64::query::PointQuery;
-use parry3d_f64::shape::Polyline;
+use parry3d_f64::partitioning::{Bvh, BvhBuildStrategy};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -69,8 +70,8 @@ fn boundary_segments(mesh: &Mesh, topology: &Topology) -> Vec<[DVec3; 2]> {
 /// its full topology is dropped as soon as these are taken.
 pub struct ReferenceTopology {
     pub snapshot: TopologySnapshot,
-    /// The reference's boundary edges as a polyline (`None`: a closed reference).
-    boundary: Option<Polyline>,
+    /// The reference's boundary edges (`None`: a closed reference).
+    boundary: Option<BoundaryIndex>,
     /// Result boundary edges farther than this from `boundary` are cracks (model units).
     crack_distance: f64,
 }
@@ -88,39 +89,106 @@ impl ReferenceTopology {
         crack_distance_factor: f64,
     ) -> Self {
         let snapshot = TopologySnapshot::with(reference, topology);
+        let mean_edge = reference.mean_edge_length();
+        let crack_distance = crack_distance_factor * mean_edge;
         let segments = boundary_segments(reference, topology);
-        let boundary = (!segments.is_empty()).then(|| {
-            let vertices: Vec<PVector> = segments
-                .iter()
-                .flatten()
-                .map(|p| PVector::new(p.x, p.y, p.z))
-                .collect();
-            let indices: Vec<[u32; 2]> = (0..segments.len() as u32)
-                .map(|i| [2 * i, 2 * i + 1])
-                .collect();
-            Polyline::new(vertices, Some(indices))
-        });
+        let boundary = (!segments.is_empty())
+            .then(|| BoundaryIndex::new(&segments, crack_distance.max(mean_edge)));
         ReferenceTopology {
             snapshot,
             boundary,
-            crack_distance: crack_distance_factor * reference.mean_edge_length(),
+            crack_distance,
         }
     }
+
+    /// Whether a reference boundary edge passes within the crack distance of `p`, and what
+    /// it cost to tell.
+    pub fn probe(&self, p: DVec3) -> Probe {
+        match &self.boundary {
+            Some(index) => index.probe(p, self.crack_distance),
+            None => Probe::default(),
+        }
+    }
+}
+
+/// The answer of [`ReferenceTopology::probe`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Probe {
+    /// A reference boundary edge lies within the crack distance.
+    pub near: bool,
+    /// Boundary pieces whose distance was measured.
+    pub measured: u32,
+}
+
+/// The most pieces one boundary edge is cut into. Far above what the length bound below
+/// asks of a mesh with finite coordinates; it only keeps a hostile edge from asking for more.
+const MAX_PIECES_PER_EDGE: f64 = 4096.0;
+
+/// Boundary edges cut into pieces no longer than a given length, indexed by their boxes.
+///
+/// The crack test asks whether *any* boundary edge lies within the crack distance, not which
+/// is closest, so a search may stop at the first piece in range. Cutting long edges keeps
+/// each box tight: on a soup of large overlapping triangles every uncut edge's box would hold
+/// every query point, and each query would measure most of the edges. With pieces no longer
+/// than the larger of the crack distance and the mean edge length, the pieces number at most
+/// the boundary edges plus the mesh's total edge length over its mean edge length, about the
+/// edge count: the index stays linear in the mesh.
+struct BoundaryIndex {
+    pieces: Vec<[DVec3; 2]>,
+    bvh: Bvh,
+}
+
+impl BoundaryIndex {
+    fn new(segments: &[[DVec3; 2]], piece_length: f64) -> Self {
+        let pieces: Vec<[DVec3; 2]> = segments
+            .iter()
+            .flat_map(|&[a, b]| {
+                let cuts = if piece_length > 0.0 {
+                    (a.distance(b) / piece_length)
+                        .ceil()
+                        .clamp(1.0, MAX_PIECES_PER_EDGE) as usize
+                } else {
+                    1
+                };
+                (0..cuts).map(move |i| {
+                    let at = |k: usize| a.lerp(b, k as f64 / cuts as f64);
+                    [at(i), at(i + 1)]
+                })
+            })
+            .collect();
+        let boxes: Vec<Aabb> = pieces
+            .iter()
+            .map(|&[a, b]| Aabb::new(vector(a.min(b)), vector(a.max(b))))
+            .collect();
+        let bvh = Bvh::from_leaves(BvhBuildStrategy::Binned, &boxes);
+        BoundaryIndex { pieces, bvh }
+    }
+
+    fn probe(&self, p: DVec3, radius: f64) -> Probe {
+        let reach = Aabb::new(vector(p - radius), vector(p + radius));
+        let mut measured = 0;
+        let near = self.bvh.intersect_aabb(&reach).any(|leaf| {
+            let [a, b] = self.pieces[leaf as usize];
+            measured += 1;
+            segment_distance(p, a, b) <= radius
+        });
+        Probe { near, measured }
+    }
+}
+
+fn vector(p: DVec3) -> PVector {
+    PVector::new(p.x, p.y, p.z)
 }
 
 /// Counts result boundary edges farther than the crack distance from every reference
 /// boundary edge.
 fn count_cracks(result_boundary: &[[DVec3; 2]], reference: &ReferenceTopology) -> usize {
-    let Some(polyline) = &reference.boundary else {
+    if reference.boundary.is_none() {
         return result_boundary.len();
-    };
+    }
     result_boundary
         .par_iter()
-        .filter(|[a, b]| {
-            let m = (*a + *b) * 0.5;
-            polyline.distance_to_local_point(PVector::new(m.x, m.y, m.z), true)
-                > reference.crack_distance
-        })
+        .filter(|[a, b]| !reference.probe((*a + *b) * 0.5).near)
         .count()
 }
 
@@ -157,6 +225,43 @@ fn compared(
 mod tests {
     use super::*;
     use crate::mesh::shapes::{grid, uv_sphere};
+
+    /// The index's answer is the brute-force answer over the uncut edges, for points near,
+    /// far and at the edge of the radius, with edges much longer than the radius.
+    #[test]
+    fn probe_agrees_with_brute_force() {
+        let m = grid(12, 9);
+        let topology = Topology::new(&m);
+        let segments = boundary_segments(&m, &topology);
+        for factor in [0.05, 0.7, 2.0, 5.0] {
+            let reference = ReferenceTopology::from_topology(&m, &topology, factor);
+            let r = reference.crack_distance;
+            let mut state = 7_u64;
+            let mut unit = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1_u64 << 53) as f64
+            };
+            let (mut near, mut far) = (0, 0);
+            for _ in 0..2000 {
+                let p = DVec3::new(
+                    unit() * (12.0 + 6.0 * r) - 3.0 * r,
+                    unit() * (9.0 + 6.0 * r) - 3.0 * r,
+                    (unit() - 0.5) * 3.0 * r,
+                );
+                let brute = segments
+                    .iter()
+                    .any(|&[a, b]| segment_distance(p, a, b) <= r);
+                assert_eq!(reference.probe(p).near, brute, "factor {factor}, {p}");
+                if brute { near += 1 } else { far += 1 }
+            }
+            assert!(
+                near > 0 && far > 0,
+                "factor {factor}: {near} near, {far} far"
+            );
+        }
+    }
 
     #[test]
     fn same_mesh_has_no_cracks() {

@@ -5,6 +5,7 @@
 
 use crate::mesh::Mesh;
 use crate::mesh::topology::{Topology, TopologyCounts};
+use crate::metrics::bvh::segment_distance;
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 use std::collections::HashSet;
@@ -149,16 +150,6 @@ fn uv_distance(p: DVec2, uv: [DVec2; 3]) -> f64 {
             (a + ab * t).distance(p)
         })
         .fold(f64::INFINITY, f64::min)
-}
-
-fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = if ab.length_squared() > 0.0 {
-        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a + ab * t).distance(p)
 }
 
 /// Audits `output` (a decimation of `input`, with `triangle_origins` indexing `input`).
