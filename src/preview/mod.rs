@@ -97,13 +97,13 @@ pub enum PreviewError {
     /// The triangles overlap so deeply that drawing them would take far longer than the
     /// rest of the job (an overlapping triangle soup).
     #[error(
-        "preview: the {panel}'s triangles would be drawn {depth} times over on average \
-         (more than {MAX_OVERDRAW}); not drawn"
+        "preview: the {panel}'s triangles would be drawn {depth} times over on average or \
+         more (the limit is {MAX_OVERDRAW}); not drawn"
     )]
     Overdraw { panel: &'static str, depth: u64 },
 }
 
-/// Most pixel tests per image pixel a panel may cost (see [`raster::work_bound`]). Scans are
+/// Most pixel tests per image pixel a panel may cost (see [`raster::rasterise_within`]). Scans are
 /// drawn with a few tests per pixel; only overlapping soups come near this.
 pub const MAX_OVERDRAW: u64 = 64;
 
@@ -316,12 +316,13 @@ fn draw_panel(
     let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
         .map(|t| mesh.triangle_vertices(t))
         .collect();
-    let depth = raster::work_bound(&vertices, &triangles, n, n) / (n * n) as u64;
-    tracing::debug!(panel, depth, "preview overdraw");
-    if depth > MAX_OVERDRAW {
-        return Err(PreviewError::Overdraw { panel, depth });
-    }
-    let g = raster::rasterise(&vertices, &triangles, n, n);
+    let pixels = (n * n) as u64;
+    let g = raster::rasterise_within(&vertices, &triangles, n, n, MAX_OVERDRAW * pixels).map_err(
+        |over| PreviewError::Overdraw {
+            panel,
+            depth: over.tests.div_ceil(pixels),
+        },
+    )?;
     drop((vertices, triangles));
     let towards_light = -cam.forward;
     let ss = ss as usize;

@@ -48,6 +48,12 @@ fn owns_edge(a: [f64; 2], b: [f64; 2]) -> bool {
     (dy == 0.0 && dx > 0.0) || dy < 0.0
 }
 
+/// The pixel tests that drawing would make pass the caller's budget: at least `tests`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OverBudget {
+    pub tests: u64,
+}
+
 /// Draws the triangles (corner indices into `vertices`, each vertex (column, row, depth)
 /// in pixels) into a `width` × `height` G-buffer. Triangles that are not finite or have
 /// no area in the image are skipped, as are corners with out-of-range indices.
@@ -57,27 +63,48 @@ pub fn rasterise(
     width: usize,
     height: usize,
 ) -> GBuffer {
+    match rasterise_within(vertices, triangles, width, height, u64::MAX) {
+        Ok(g) => g,
+        Err(_) => unreachable!("no count of pixel tests passes u64::MAX"),
+    }
+}
+
+/// [`rasterise`], refused before any pixel is drawn when the pixel tests it would make
+/// (each triangle's clipped bounding box, see [`box_tests`]) pass `max_tests`. The count
+/// is taken while the triangles are binned, and binning stops as soon as it passes.
+pub fn rasterise_within(
+    vertices: &[[f64; 3]],
+    triangles: &[[u32; 3]],
+    width: usize,
+    height: usize,
+    max_tests: u64,
+) -> Result<GBuffer, OverBudget> {
     let pixels = width * height;
     let mut depth = vec![f32::INFINITY; pixels];
     let mut triangle = vec![NONE; pixels];
     let mut bary = vec![[0.0f32; 2]; pixels];
     if pixels == 0 {
-        return GBuffer {
+        return Ok(GBuffer {
             width,
             height,
             depth,
             triangle,
             bary,
             fragments: 0,
-        };
+        });
     }
     // Bin the triangles into row strips, in index order (sequential: the order matters).
     let strips = height.div_ceil(STRIP_ROWS);
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); strips];
+    let mut tests = 0u64;
     for (t, corners) in triangles.iter().enumerate() {
         let Some(rows) = row_span(vertices, corners, height) else {
             continue;
         };
+        tests = tests.saturating_add(box_tests(vertices, corners, rows, width));
+        if tests > max_tests {
+            return Err(OverBudget { tests });
+        }
         for bin in &mut bins[rows.0 / STRIP_ROWS..=rows.1 / STRIP_ROWS] {
             bin.push(t as u32);
         }
@@ -106,41 +133,30 @@ pub fn rasterise(
             strip.fragments
         })
         .sum();
-    GBuffer {
+    Ok(GBuffer {
         width,
         height,
         depth,
         triangle,
         bary,
         fragments,
-    }
+    })
 }
 
-/// An upper bound of the pixel tests [`rasterise`] makes: the pixels of every usable
-/// triangle's bounding box, clipped to the image. A mesh drawn once over its silhouette
-/// makes a few times the image's pixels; overlapping triangle soups make thousands of times,
-/// which is what this lets a caller refuse before drawing.
-pub fn work_bound(
-    vertices: &[[f64; 3]],
-    triangles: &[[u32; 3]],
-    width: usize,
-    height: usize,
-) -> u64 {
-    triangles
-        .iter()
-        .filter_map(|corners| {
-            let (first, last) = row_span(vertices, corners, height)?;
-            let xs = corners.map(|i| vertices[i as usize][0]);
-            let lo = (xs.iter().copied().fold(f64::INFINITY, f64::min) - 0.5)
-                .ceil()
-                .max(0.0);
-            let hi = (xs.iter().copied().fold(f64::NEG_INFINITY, f64::max) - 0.5)
-                .floor()
-                .min(width as f64 - 1.0);
-            let columns = if lo <= hi { (hi - lo) as u64 + 1 } else { 0 };
-            Some(columns * (last - first + 1) as u64)
-        })
-        .sum()
+/// The pixel tests drawing one triangle may make: the pixel centres of its bounding box
+/// clipped to the image (its `rows` from [`row_span`], its columns here). A mesh drawn
+/// once over its silhouette makes a few times the image's pixels in all; an overlapping
+/// triangle soup makes thousands of times.
+fn box_tests(vertices: &[[f64; 3]], corners: &[u32; 3], rows: (usize, usize), width: usize) -> u64 {
+    let xs = corners.map(|i| vertices[i as usize][0]);
+    let lo = (xs.iter().copied().fold(f64::INFINITY, f64::min) - 0.5)
+        .ceil()
+        .max(0.0);
+    let hi = (xs.iter().copied().fold(f64::NEG_INFINITY, f64::max) - 0.5)
+        .floor()
+        .min(width as f64 - 1.0);
+    let columns = if lo <= hi { (hi - lo) as u64 + 1 } else { 0 };
+    columns * (rows.1 - rows.0 + 1) as u64
 }
 
 /// The rows (inclusive) whose pixel centres the triangle may cover, `None` if none or if

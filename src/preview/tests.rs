@@ -211,11 +211,21 @@ fn overlapping_layers_beyond_the_overdraw_budget_are_not_drawn() {
 }
 
 #[test]
-fn the_work_bound_counts_clipped_bounding_boxes() {
+fn the_budget_counts_clipped_bounding_boxes() {
     // A right triangle over 10 × 10 pixel centres, half of it outside a 5-wide image.
     let vertices = [[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [0.0, 10.0, 0.0]];
-    assert_eq!(raster::work_bound(&vertices, &[[0, 1, 2]], 5, 20), 50);
-    assert_eq!(raster::work_bound(&vertices, &[[0, 1, 2]], 20, 20), 100);
-    // Out-of-range corners and triangles outside the image cost nothing.
-    assert_eq!(raster::work_bound(&vertices, &[[0, 1, 7]], 20, 20), 0);
+    let within = |t: [u32; 3], width, budget| {
+        raster::rasterise_within(&vertices, &[t], width, 20, budget).map(|g| g.fragments)
+    };
+    assert_eq!(
+        within([0, 1, 2], 5, 49),
+        Err(raster::OverBudget { tests: 50 })
+    );
+    assert!(within([0, 1, 2], 5, 50).is_ok());
+    assert_eq!(
+        within([0, 1, 2], 20, 99),
+        Err(raster::OverBudget { tests: 100 })
+    );
+    // Out-of-range corners cost nothing, and draw nothing.
+    assert_eq!(within([0, 1, 7], 20, 0), Ok(0));
 }

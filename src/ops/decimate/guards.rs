@@ -32,12 +32,21 @@ pub enum LinkShape {
 /// Scratch for [`link_shape`], reused so that the hot loop does not allocate.
 #[derive(Debug, Default)]
 pub struct LinkScratch {
-    /// The link's vertices, sorted and distinct.
+    /// Small links: each vertex with its link-edge count, in the order met.
+    counted: Vec<(u32, u32)>,
+    /// Small links: the edges the walk has taken.
+    used: Vec<bool>,
+    /// Large links: the vertices, sorted and distinct; per vertex its link-edge count and its
+    /// component's root.
     verts: Vec<u32>,
-    /// Per vertex (as in `verts`): link edges at it, then its component's root.
     degree: Vec<u32>,
     parent: Vec<u32>,
 }
+
+/// Up to this many link edges (around a vertex of valence 6 a merge has about 10), the link
+/// is checked by a walk, O(k²) but with nothing to sort or index; larger links by
+/// union–find, O(k log k), so that a vertex of valence 50,000 does not cost 50,000² steps.
+const WALK_EDGES: usize = 32;
 
 /// The link condition in its general form: after merging, the triangles around the new
 /// vertex must form one disk (cycle) or one half-disk (path). Every vertex of the link
@@ -46,13 +55,64 @@ pub struct LinkScratch {
 /// vertex), and a repeated link edge (a duplicate triangle) is refused. This subsumes the
 /// usual `Lk(a) ∩ Lk(b) = Lk(ab)` test for edge collapse and extends it to face collapse.
 /// Orientation is ignored, so inconsistently oriented input does not trip it.
-///
-/// O(k log k) for k link edges (a sort, then union–find over the link's vertices): a
-/// vertex of valence 50,000 must not cost 50,000² steps.
 pub fn link_shape(edges: &[(u32, u32)], sc: &mut LinkScratch) -> Option<LinkShape> {
     if edges.is_empty() || edges.iter().any(|&(x, y)| x == y) {
         return None;
     }
+    if edges.len() <= WALK_EDGES {
+        link_shape_by_walk(edges, sc)
+    } else {
+        link_shape_by_union(edges, sc)
+    }
+}
+
+/// The shape that link-edge counts allow: `ones` vertices with one link edge, the others
+/// with two, `nv` vertices and `ne` edges. Connectivity is for the caller to check.
+fn shape_by_counts(ones: usize, nv: usize, ne: usize) -> Option<LinkShape> {
+    match ones {
+        0 if ne == nv && ne >= 3 => Some(LinkShape::Cycle),
+        2 if ne + 1 == nv => Some(LinkShape::Path),
+        _ => None,
+    }
+}
+
+/// [`link_shape`] for a small link: count by scanning, then walk from one end (a path) or
+/// anywhere (a cycle) and check the walk takes every edge.
+fn link_shape_by_walk(edges: &[(u32, u32)], sc: &mut LinkScratch) -> Option<LinkShape> {
+    sc.counted.clear();
+    for v in edges.iter().flat_map(|&(x, y)| [x, y]) {
+        match sc.counted.iter_mut().find(|e| e.0 == v) {
+            Some(e) if e.1 == 2 => return None,
+            Some(e) => e.1 += 1,
+            None => sc.counted.push((v, 1)),
+        }
+    }
+    let ones = sc.counted.iter().filter(|e| e.1 == 1).count();
+    let shape = shape_by_counts(ones, sc.counted.len(), edges.len())?;
+    let mut at = match shape {
+        LinkShape::Path => sc.counted.iter().find(|e| e.1 == 1)?.0,
+        LinkShape::Cycle => edges[0].0,
+    };
+    sc.used.clear();
+    sc.used.resize(edges.len(), false);
+    let mut walked = 0;
+    while let Some(i) =
+        (0..edges.len()).find(|&i| !sc.used[i] && (edges[i].0 == at || edges[i].1 == at))
+    {
+        sc.used[i] = true;
+        walked += 1;
+        at = if edges[i].0 == at {
+            edges[i].1
+        } else {
+            edges[i].0
+        };
+    }
+    (walked == edges.len()).then_some(shape)
+}
+
+/// [`link_shape`] for a large link: vertices sorted and found by binary search, components
+/// joined by union–find.
+fn link_shape_by_union(edges: &[(u32, u32)], sc: &mut LinkScratch) -> Option<LinkShape> {
     sc.verts.clear();
     sc.verts.extend(edges.iter().flat_map(|&(x, y)| [x, y]));
     sc.verts.sort_unstable();
@@ -62,10 +122,10 @@ pub fn link_shape(edges: &[(u32, u32)], sc: &mut LinkScratch) -> Option<LinkShap
     sc.degree.resize(nv, 0);
     sc.parent.clear();
     sc.parent.extend(0..nv as u32);
-    let at = |verts: &[u32], v: u32| verts.binary_search(&v).unwrap_or(0);
     let mut components = nv;
     for &(x, y) in edges {
-        let (i, j) = (at(&sc.verts, x), at(&sc.verts, y));
+        let at = |v: u32| sc.verts.binary_search(&v).unwrap_or(0);
+        let (i, j) = (at(x), at(y));
         for k in [i, j] {
             sc.degree[k] += 1;
             if sc.degree[k] > 2 {
@@ -79,12 +139,7 @@ pub fn link_shape(edges: &[(u32, u32)], sc: &mut LinkScratch) -> Option<LinkShap
         }
     }
     let ones = sc.degree.iter().filter(|&&d| d == 1).count();
-    let ne = edges.len();
-    let shape = match ones {
-        0 if ne == nv && ne >= 3 => LinkShape::Cycle,
-        2 if ne + 1 == nv => LinkShape::Path,
-        _ => return None,
-    };
+    let shape = shape_by_counts(ones, nv, edges.len())?;
     // Every vertex has a link edge, so one component of vertices is one of edges.
     (components == 1).then_some(shape)
 }
@@ -152,47 +207,8 @@ mod tests {
         assert_eq!(link_shape(&[], &mut sc), None);
     }
 
-    /// The shape by the definition, step by step (a walk from one end): what
-    /// [`link_shape`] must agree with.
-    fn link_shape_by_walking(edges: &[(u32, u32)]) -> Option<LinkShape> {
-        if edges.is_empty() || edges.iter().any(|&(x, y)| x == y) {
-            return None;
-        }
-        let degree = |v: u32| edges.iter().filter(|&&(x, y)| x == v || y == v).count();
-        let mut verts: Vec<u32> = edges.iter().flat_map(|&(x, y)| [x, y]).collect();
-        verts.sort_unstable();
-        verts.dedup();
-        if verts.iter().any(|&v| degree(v) > 2) {
-            return None;
-        }
-        let ones = verts.iter().filter(|&&v| degree(v) == 1).count();
-        let shape = match ones {
-            0 if edges.len() == verts.len() && edges.len() >= 3 => LinkShape::Cycle,
-            2 if edges.len() + 1 == verts.len() => LinkShape::Path,
-            _ => return None,
-        };
-        let mut cur = match shape {
-            LinkShape::Path => *verts.iter().find(|&&v| degree(v) == 1)?,
-            LinkShape::Cycle => edges[0].0,
-        };
-        let mut used = vec![false; edges.len()];
-        let mut walked = 0;
-        while let Some(i) =
-            (0..edges.len()).find(|&i| !used[i] && (edges[i].0 == cur || edges[i].1 == cur))
-        {
-            used[i] = true;
-            walked += 1;
-            cur = if edges[i].0 == cur {
-                edges[i].1
-            } else {
-                edges[i].0
-            };
-        }
-        (walked == edges.len()).then_some(shape)
-    }
-
     #[test]
-    fn link_shape_agrees_with_the_walk_on_random_links() {
+    fn the_walk_and_union_find_agree_on_random_links() {
         let mut sc = LinkScratch::default();
         let mut x = 7u64;
         let mut next = |m: u64| {
@@ -201,9 +217,15 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (x >> 33) % m
         };
-        let (mut cycles, mut paths) = (0, 0);
+        let (mut cycles, mut paths, mut large) = (0, 0, 0);
         for _ in 0..20_000 {
-            let n = 1 + next(9);
+            // Both strategies on every link, small and large, across the size where
+            // `link_shape` goes from the walk to union-find.
+            let n = if next(4) == 0 {
+                WALK_EDGES as u64 - 4 + next(9)
+            } else {
+                1 + next(9)
+            };
             // Mostly rings and paths over few labels, some shuffled and broken.
             let mut edges: Vec<(u32, u32)> = match next(3) {
                 0 => (0..n).map(|i| (i as u32, ((i + 1) % n) as u32)).collect(),
@@ -217,12 +239,23 @@ mod tests {
             for i in (1..edges.len()).rev() {
                 edges.swap(i, next(i as u64 + 1) as usize);
             }
-            let want = link_shape_by_walking(&edges);
+            let loops = edges.iter().any(|&(x, y)| x == y);
+            let want = (!loops)
+                .then(|| link_shape_by_walk(&edges, &mut sc))
+                .flatten();
+            let union = (!loops)
+                .then(|| link_shape_by_union(&edges, &mut sc))
+                .flatten();
+            assert_eq!(union, want, "{edges:?}");
             assert_eq!(link_shape(&edges, &mut sc), want, "{edges:?}");
             cycles += usize::from(want == Some(LinkShape::Cycle));
             paths += usize::from(want == Some(LinkShape::Path));
+            large += usize::from(want.is_some() && edges.len() > WALK_EDGES);
         }
-        assert!(cycles > 1000 && paths > 1000, "{cycles} {paths}");
+        assert!(
+            cycles > 1000 && paths > 1000 && large > 500,
+            "{cycles} {paths} {large}"
+        );
     }
 
     #[test]

@@ -126,6 +126,10 @@ pub fn oct_decode(e: u32) -> [f64; 3] {
     }
 }
 
+/// Most (vertex, corner) entries around one vertex that its classification scans rather
+/// than sorts (see [`Work::new`]'s classification): about valence 20.
+const SCAN_TOUCHING: usize = 64;
+
 /// Binary digits of `n` (⌈log₂(n + 1)⌉): the steps of a binary search over `n` items.
 fn bits(n: usize) -> usize {
     (usize::BITS - n.leading_zeros()) as usize
@@ -520,8 +524,10 @@ impl<'a, const M: usize> Work<'a, M> {
                     let mut border_edges = 0;
                     let mut planes = Vec::new();
                     // Which corners' triangles touch each vertex: (vertex, corner's place in
-                    // `corners`), sorted, so that the triangles on an edge (v, x) are one
-                    // run, found by a binary search (O(k log k) for valence k, not O(k²)).
+                    // `corners`), in corner order. Around a vertex of high valence they are
+                    // sorted, so that the triangles on an edge (v, x) are one run found by a
+                    // binary search (O(k log k) for valence k, not O(k²)); around the usual
+                    // few corners a scan finds them sooner than a sort would.
                     touching.clear();
                     for (i, &c) in corners.iter().enumerate() {
                         let tv = self.tris[c as usize / 3].map(|w| self.wvert[w as usize]);
@@ -531,8 +537,12 @@ impl<'a, const M: usize> Work<'a, M> {
                             }
                         }
                     }
-                    touching.sort_unstable();
-                    let mut steps = (corners.len() + touching.len() * bits(touching.len())) as u64;
+                    let sorted = touching.len() > SCAN_TOUCHING;
+                    let mut steps = corners.len() as u64;
+                    if sorted {
+                        touching.sort_unstable();
+                        steps += (touching.len() * bits(touching.len())) as u64;
+                    }
                     // Every neighbour x: the triangles on edge (v, x).
                     for (i, &ci) in corners.iter().enumerate() {
                         let (ti, ki) = (ci as usize / 3, ci as usize % 3);
@@ -541,16 +551,23 @@ impl<'a, const M: usize> Work<'a, M> {
                             let x_w = tri_i[(ki + side) % 3];
                             let x = self.wvert[x_w as usize];
                             // The corners whose triangles have x, in order; corner i's is one.
-                            let lo = touching.partition_point(|e| e.0 < x);
-                            let hi = touching.partition_point(|e| e.0 <= x);
-                            steps += 2 * bits(touching.len()) as u64;
-                            let run = &touching[lo..hi];
+                            let (lo, hi) = if sorted {
+                                steps += 2 * bits(touching.len()) as u64;
+                                (
+                                    touching.partition_point(|e| e.0 < x),
+                                    touching.partition_point(|e| e.0 <= x),
+                                )
+                            } else {
+                                steps += touching.len() as u64;
+                                (0, touching.len())
+                            };
+                            let mut run = touching[lo..hi].iter().filter(|e| e.0 == x);
                             // Count each edge once: from the first corner that has it.
-                            if run[0].1 < i as u32 {
+                            if run.next().is_some_and(|e| e.1 < i as u32) {
                                 continue;
                             }
-                            steps += run.len().min(3) as u64;
-                            let mut others = run[1..].iter().map(|e| &corners[e.1 as usize]);
+                            steps += 2;
+                            let mut others = run.map(|e| &corners[e.1 as usize]);
                             match (others.next(), others.next()) {
                                 (None, _) => {
                                     border_edges += 1;
