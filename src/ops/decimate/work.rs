@@ -62,6 +62,7 @@ impl KeyIndex {
     }
 
     /// The place of `key`, if met.
+    #[inline]
     pub fn get(&self, key: u32) -> Option<usize> {
         if self.keys.len() <= Self::SCAN {
             self.keys.iter().position(|&k| k == key)
@@ -71,6 +72,7 @@ impl KeyIndex {
     }
 
     /// The place of `key`, adding it at the end if new; `true` when it was new.
+    #[inline]
     pub fn insert(&mut self, key: u32) -> (usize, bool) {
         if let Some(i) = self.get(key) {
             return (i, false);
@@ -224,6 +226,7 @@ impl<const M: usize> Default for Scratch<M> {
 }
 
 impl<const M: usize> Scratch<M> {
+    #[inline]
     fn local(&self, w: u32) -> usize {
         self.lw.get(w).unwrap_or(usize::MAX)
     }
@@ -236,6 +239,7 @@ impl<const M: usize> Scratch<M> {
         i
     }
     /// The group a wedge of S belongs to.
+    #[inline]
     pub fn group_of(&self, w: u32) -> &Group<M> {
         &self.groups[self.lw_group[self.local(w)] as usize]
     }
