@@ -4,7 +4,7 @@
 //! keeps the audit trail of when each was applied and by which version of scanmill.
 
 /// Migration `i` brings the schema from version `i` to `i + 1`.
-pub const MIGRATIONS: &[&str] = &[V1, V2];
+pub const MIGRATIONS: &[&str] = &[V1, V2, V3];
 
 /// The newest schema version this binary knows.
 pub const LATEST: u32 = MIGRATIONS.len() as u32;
@@ -131,4 +131,11 @@ CREATE TABLE waiting (
 /// The preview picture of a finished job (absolute path; NULL when none was drawn).
 const V2: &str = r#"
 ALTER TABLE job ADD COLUMN preview TEXT;
+"#;
+
+/// The web dashboard's job list (newest first, keyset on `id`) filtered by state or by
+/// watched folder: without these a filter on a rare state walks every job.
+const V3: &str = r#"
+CREATE INDEX job_state_id ON job(state, id);
+CREATE INDEX job_root_id ON job(root, id);
 "#;
