@@ -26,6 +26,14 @@ pub fn filter_pairs(q: &JobQuery, from: &str, to: &str) -> Vec<(&'static str, St
         ("from", from.to_string()),
         ("to", to.to_string()),
         ("q", q.text.clone().unwrap_or_default()),
+        (
+            "n",
+            if q.limit == super::params::PAGE_SIZE {
+                String::new()
+            } else {
+                q.limit.to_string()
+            },
+        ),
     ]
 }
 

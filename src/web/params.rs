@@ -4,8 +4,9 @@
 use super::reader::{Cursor, JobQuery, JobState};
 use std::collections::HashMap;
 
-/// Jobs shown per page.
+/// Jobs shown per page unless `n` says otherwise (at most [`MAX_PAGE_SIZE`]).
 pub const PAGE_SIZE: usize = 50;
+pub const MAX_PAGE_SIZE: usize = 500;
 /// Longest name search accepted (bytes).
 const MAX_SEARCH: usize = 200;
 
@@ -95,6 +96,14 @@ pub fn job_query(params: &HashMap<String, String>) -> Result<JobQuery, String> {
         "" => None,
         r => Some(r.to_string()),
     };
+    let limit = match value(params, "n") {
+        "" => PAGE_SIZE,
+        v => v
+            .parse::<usize>()
+            .ok()
+            .filter(|n| (1..=MAX_PAGE_SIZE).contains(n))
+            .ok_or_else(|| format!("n must be 1..={MAX_PAGE_SIZE}"))?,
+    };
     Ok(JobQuery {
         state,
         root,
@@ -102,7 +111,7 @@ pub fn job_query(params: &HashMap<String, String>) -> Result<JobQuery, String> {
         to_ms,
         text,
         cursor,
-        limit: PAGE_SIZE,
+        limit,
     })
 }
 

@@ -1,0 +1,413 @@
+//! The web dashboard and /metrics against the running daemon (the real binary), with a real
+//! HTTP client: status codes, content, filters, pagination, escaping of hostile file names,
+//! /metrics through a Prometheus text-format parser, 404s, traversal attempts, the token.
+//! Every wait is a poll with a generous deadline; nothing asserts on durations.
+
+mod daemon_support;
+
+use daemon_support::*;
+use std::io::{Read, Write};
+use std::os::unix::ffi::OsStrExt;
+use std::path::Path;
+
+/// The dashboard's base URL, from the daemon's log line.
+fn base_url(lab: &Lab) -> String {
+    let logs = lab.logs();
+    let at = logs
+        .find("web dashboard on http://")
+        .unwrap_or_else(|| panic!("no dashboard address logged:\n{logs}"));
+    let rest = &logs[at + "web dashboard on ".len()..];
+    rest.split_whitespace().next().unwrap().to_string()
+}
+
+fn agent() -> ureq::Agent {
+    ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .build()
+        .into()
+}
+
+/// GET: (status, content type, body as text).
+fn get(url: &str) -> (u16, String, String) {
+    get_with(url, None)
+}
+
+fn get_with(url: &str, auth: Option<&str>) -> (u16, String, String) {
+    let mut req = agent().get(url);
+    if let Some(a) = auth {
+        req = req.header("Authorization", a);
+    }
+    let mut r = req.call().unwrap_or_else(|e| panic!("{url}: {e}"));
+    let kind = r
+        .headers()
+        .get("content-type")
+        .map(|v| v.to_str().unwrap().to_string())
+        .unwrap_or_default();
+    let body = r.body_mut().read_to_vec().unwrap();
+    (
+        r.status().as_u16(),
+        kind,
+        String::from_utf8_lossy(&body).into_owned(),
+    )
+}
+
+/// A request written byte for byte (no client normalises its path): status and body.
+fn raw_get(base: &str, path: &str) -> (u16, String) {
+    let addr = base.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut out = String::new();
+    s.read_to_string(&mut out).unwrap();
+    let status = out
+        .split(' ')
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    (status, out)
+}
+
+/// The job ids of a list page, in the order shown.
+fn ids(page: &str) -> Vec<i64> {
+    page.split("<td class=\"n\"><a href=\"/jobs/")
+        .skip(1)
+        .map(|s| s[..s.find('"').unwrap()].parse().unwrap())
+        .collect()
+}
+
+/// The href of the link with `rel`, `&amp;` undone.
+fn link(page: &str, rel: &str) -> Option<String> {
+    let at = page.find(&format!("rel=\"{rel}\" href=\""))?;
+    let rest = &page[at + rel.len() + 13..];
+    Some(rest[..rest.find('"').unwrap()].replace("&amp;", "&"))
+}
+
+fn web_lab(extra: &str) -> Lab {
+    Lab::new(
+        0.3,
+        &format!("[web]\nenabled = true\nlisten = \"127.0.0.1:0\"\n{extra}"),
+    )
+}
+
+/// Strict check of the text format: every line is a comment, or `name{labels} value` with
+/// a valid metric name, well-formed quoted label values and a number.
+fn strict_exposition(text: &str) {
+    for line in text.lines() {
+        if line.starts_with("# HELP ") || line.starts_with("# TYPE ") {
+            continue;
+        }
+        let (series, value) = line.rsplit_once(' ').unwrap_or_else(|| panic!("{line}"));
+        assert!(
+            value.parse::<f64>().is_ok() || value == "+Inf",
+            "value: {line}"
+        );
+        let (name, labels) = match series.find('{') {
+            Some(i) => (&series[..i], Some(&series[i..])),
+            None => (series, None),
+        };
+        assert!(
+            !name.is_empty()
+                && name
+                    .bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b':')
+                && !name.as_bytes()[0].is_ascii_digit(),
+            "name: {line}"
+        );
+        if let Some(l) = labels {
+            let inner = l
+                .strip_prefix('{')
+                .and_then(|l| l.strip_suffix('}'))
+                .unwrap_or_else(|| panic!("{line}"));
+            let mut rest = inner;
+            while !rest.is_empty() {
+                let eq = rest.find("=\"").unwrap_or_else(|| panic!("{line}"));
+                let mut i = eq + 2;
+                let b = rest.as_bytes();
+                while b[i] != b'"' {
+                    i += if b[i] == b'\\' { 2 } else { 1 };
+                }
+                rest = rest[i + 1..].strip_prefix(',').unwrap_or(&rest[i + 1..]);
+            }
+        }
+    }
+}
+
+#[test]
+fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
+    let lab = web_lab("");
+    let _d = KillOnDrop(lab.start(&[]));
+    let base = base_url(&lab);
+    let inbox = lab.inbox();
+    copy_james(&inbox.join("session1"));
+    // Hostile names: markup and quotes, a newline, bytes that are not UTF-8; and a broken
+    // file whose error text carries its markup-laden name.
+    std::fs::write(inbox.join("<script>alert('x')\".ply"), bunny_variant("a")).unwrap();
+    std::fs::write(inbox.join("evil\nname.ply"), bunny_variant("b")).unwrap();
+    let raw = std::ffi::OsStr::from_bytes(b"bad\xff\xfe.ply");
+    std::fs::write(inbox.join(raw), bunny_variant("c")).unwrap();
+    std::fs::write(
+        inbox.join("<img src=x onerror=alert(1)>.ply"),
+        b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n",
+    )
+    .unwrap();
+    assert!(
+        wait_for(120, || lab.count_state("done") == 4
+            && lab.count_state("failed") + lab.count_state("quarantined")
+                == 1),
+        "{:#?}\n{}",
+        lab.jobs(),
+        lab.logs()
+    );
+    let jobs = lab.jobs();
+    let james = jobs
+        .iter()
+        .find(|j| j["input"].as_str().unwrap().ends_with("james.obj"))
+        .unwrap()["id"]
+        .as_i64()
+        .unwrap();
+    let broken = jobs.iter().find(|j| j["state"] != "done").unwrap()["id"]
+        .as_i64()
+        .unwrap();
+
+    // The list: every job, newest first, names escaped.
+    let (code, kind, page) = get(&base);
+    assert_eq!(code, 200);
+    assert!(kind.starts_with("text/html"), "{kind}");
+    let all = ids(&page);
+    assert_eq!(all.len(), 5, "{page}");
+    assert!(all.windows(2).all(|w| w[0] > w[1]), "newest first: {all:?}");
+    assert!(page.contains("session1/james.obj"), "{page}");
+    assert!(page.contains("&lt;script&gt;alert(&#39;x&#39;)&quot;.ply"));
+    assert!(page.contains("evil\\nname.ply"), "newline shown escaped");
+    assert!(
+        page.contains("bad\\xff\\xfe.ply"),
+        "non-UTF-8 bytes shown escaped"
+    );
+    assert!(page.contains("&lt;img src=x onerror=alert(1)&gt;"));
+    let lower = page.to_lowercase();
+    assert!(!lower.contains("<script"), "markup injected");
+    assert!(!lower.contains("<img src=x"), "markup injected");
+    assert!(!page.contains("evil\nname"), "raw newline");
+    assert!(page.contains(&format!("/jobs/{james}/preview")));
+
+    // Filters.
+    let (_, _, failed) = get(&format!("{base}?state=failed"));
+    let (_, _, quarantined) = get(&format!("{base}?state=quarantined"));
+    assert_eq!(
+        [ids(&failed), ids(&quarantined)].concat(),
+        vec![broken],
+        "state filter"
+    );
+    assert_eq!(
+        ids(&get(&format!("{base}?q=JAMES")).2),
+        vec![james],
+        "name search"
+    );
+    assert_eq!(ids(&get(&format!("{base}?q=%3Cscript")).2).len(), 1);
+    let root = lab.inbox().canonicalize().unwrap();
+    let root_q: String = root
+        .to_string_lossy()
+        .bytes()
+        .map(|b| format!("%{b:02X}"))
+        .collect();
+    assert_eq!(ids(&get(&format!("{base}?root={root_q}")).2).len(), 5);
+    assert!(ids(&get(&format!("{base}?root=%2Fnowhere")).2).is_empty());
+    assert!(ids(&get(&format!("{base}?from=2000-01-01&to=2000-01-31")).2).is_empty());
+    let today = &serde_json::to_string(&jobs[0]["created"]).unwrap()[1..11];
+    assert_eq!(
+        ids(&get(&format!("{base}?from={today}&to={today}")).2).len(),
+        5
+    );
+    for bad in ["?state=exploded", "?before=x", "?from=2026-02-30", "?n=0"] {
+        assert_eq!(get(&format!("{base}{bad}")).0, 400, "{bad}");
+    }
+
+    // Keyset pagination, two at a time: older pages reach every job once, newer comes back.
+    let mut seen = Vec::new();
+    let mut url = format!("{base}?n=2");
+    let mut pages = Vec::new();
+    loop {
+        let (code, _, page) = get(&url);
+        assert_eq!(code, 200);
+        seen.extend(ids(&page));
+        pages.push(page.clone());
+        match link(&page, "next") {
+            Some(href) => url = format!("{}{}", base.trim_end_matches('/'), href),
+            None => break,
+        }
+    }
+    assert_eq!(seen, all, "pages cover the list in order, once");
+    assert_eq!(pages.len(), 3);
+    let back = link(&pages[1], "prev").expect("newer link on page 2");
+    assert_eq!(
+        ids(&get(&format!("{}{}", base.trim_end_matches('/'), back)).2),
+        ids(&pages[0])
+    );
+
+    // The job page: what `show` gives.
+    let shown = lab.show(james);
+    let (code, _, page) = get(&format!("{base}jobs/{james}"));
+    assert_eq!(code, 200);
+    for output in shown["outputs"].as_array().unwrap() {
+        assert!(page.contains(output["sha256"].as_str().unwrap()), "hash");
+    }
+    assert!(page.contains("id=\"preview\""), "preview shown");
+    assert!(page.contains("<h2>Metrics</h2>") && page.contains("distance.rms"));
+    assert!(page.contains("&quot;normals&quot;"), "resolved recipe");
+    assert!(page.contains("<td>ok</td>"), "attempt outcome");
+    let (code, _, page) = get(&format!("{base}jobs/{broken}"));
+    assert_eq!(code, 200);
+    assert!(page.contains("&lt;img src=x onerror=alert(1)&gt;"));
+    assert!(!page.to_lowercase().contains("<img src=x"));
+
+    // The preview, by job id only.
+    let mut r = agent()
+        .get(format!("{base}jobs/{james}/preview"))
+        .call()
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    assert_eq!(r.headers()["content-type"], "image/png");
+    let png = r.body_mut().read_to_vec().unwrap();
+    let img = image::load_from_memory(&png).unwrap();
+    assert!(img.width() > 0 && img.height() > 0);
+
+    // Unknown jobs and pages, traversal attempts.
+    for path in [
+        "jobs/999999",
+        "jobs/abc",
+        "jobs/999999/preview",
+        "jobs/0",
+        "nothing-here",
+    ] {
+        assert_eq!(get(&format!("{base}{path}")).0, 404, "{path}");
+    }
+    for path in [
+        "/jobs/..%2F..%2F..%2Fetc%2Fpasswd/preview",
+        "/jobs/1/../../../../etc/passwd",
+        "/../../../../etc/passwd",
+        "/static/..%2f..%2f..%2fetc%2fpasswd",
+        "/static/../../Cargo.toml",
+        "/jobs/%2e%2e/preview",
+    ] {
+        let (code, text) = raw_get(&base, path);
+        assert!(code == 404 || code == 400, "{path}: {code}");
+        assert!(!text.contains("root:x:0"), "{path}");
+    }
+    // Read-only: no other method.
+    let code = agent().post(&base).send_empty().unwrap().status().as_u16();
+    assert_eq!(code, 405);
+
+    // Security headers on every page.
+    let r = agent().get(&base).call().unwrap();
+    let csp = r.headers()["content-security-policy"].to_str().unwrap();
+    assert!(csp.contains("default-src 'none'"), "{csp}");
+
+    // Trends and Health.
+    let (code, _, page) = get(&format!("{base}trends"));
+    assert_eq!(code, 200);
+    assert!(page.contains("<svg") && page.contains("<circle"), "{page}");
+    assert!(page.contains(&root.to_string_lossy().to_string()));
+    assert_eq!(get(&format!("{base}trends?days=0")).0, 400);
+    let (code, _, page) = get(&format!("{base}health"));
+    assert_eq!(code, 200);
+    assert!(page.contains("idle") || page.contains("working"), "{page}");
+    assert!(page.contains("queue depth"));
+    assert!(
+        page.contains(&format!("job {broken}")),
+        "last error: {page}"
+    );
+
+    // /metrics through a Prometheus parser, and a strict line check.
+    let (code, kind, text) = get(&format!("{base}metrics"));
+    assert_eq!(code, 200);
+    assert!(kind.starts_with("text/plain; version=0.0.4"), "{kind}");
+    strict_exposition(&text);
+    let scrape = prometheus_parse::Scrape::parse(text.lines().map(|l| Ok(l.to_string()))).unwrap();
+    let value = |s: &prometheus_parse::Sample| match s.value {
+        prometheus_parse::Value::Gauge(v)
+        | prometheus_parse::Value::Counter(v)
+        | prometheus_parse::Value::Untyped(v) => v,
+        _ => f64::NAN,
+    };
+    let sum = |metric: &str, label: Option<(&str, &str)>| -> f64 {
+        scrape
+            .samples
+            .iter()
+            .filter(|s| s.metric == metric)
+            .filter(|s| label.is_none_or(|(k, v)| s.labels.get(k) == Some(v)))
+            .map(value)
+            .sum()
+    };
+    assert_eq!(sum("scanmill_jobs", Some(("state", "done"))), 4.0, "{text}");
+    assert_eq!(sum("scanmill_jobs", None), 5.0);
+    assert_eq!(sum("scanmill_queue_depth", None), 0.0);
+    assert_eq!(sum("scanmill_workers", None), 1.0);
+    assert!(
+        sum("scanmill_attempt_failures_total", None) >= 1.0,
+        "{text}"
+    );
+    let last = sum("scanmill_last_success_timestamp_seconds", None);
+    assert!(last > 1.7e9, "{last}");
+    let histogram = scrape
+        .samples
+        .iter()
+        .find(|s| s.metric == "scanmill_job_processing_seconds")
+        .expect("histogram");
+    let prometheus_parse::Value::Histogram(buckets) = &histogram.value else {
+        panic!("{histogram:?}")
+    };
+    assert_eq!(buckets.last().unwrap().count, 4.0, "+Inf bucket");
+    assert!(buckets.windows(2).all(|w| w[0].count <= w[1].count));
+    assert_eq!(sum("scanmill_job_processing_seconds_count", None), 4.0);
+}
+
+#[test]
+fn token_is_required_when_configured() {
+    let lab = web_lab("token = \"0123456789abcdef-lab\"\n");
+    let _d = KillOnDrop(lab.start(&[]));
+    let base = base_url(&lab);
+    let (code, _, _) = get(&base);
+    assert_eq!(code, 401);
+    let r = agent().get(&base).call().unwrap();
+    assert!(r.headers().contains_key("www-authenticate"));
+    assert_eq!(
+        get_with(&base, Some("Bearer wrong-token-of-some-length")).0,
+        401
+    );
+    assert_eq!(get_with(&base, Some("Bearer 0123456789abcdef-lab")).0, 200);
+    assert_eq!(
+        get_with(
+            &format!("{base}metrics"),
+            Some("Bearer 0123456789abcdef-lab")
+        )
+        .0,
+        200
+    );
+    // HTTP Basic, as a browser sends it: "lab:0123456789abcdef-lab".
+    assert_eq!(
+        get_with(&base, Some("Basic bGFiOjAxMjM0NTY3ODlhYmNkZWYtbGFi")).0,
+        200
+    );
+}
+
+#[test]
+fn exposed_address_without_token_or_proxy_is_refused_with_exit_78() {
+    let lab = Lab::new(0.3, "[web]\nenabled = true\nlisten = \"0.0.0.0:8640\"\n");
+    let (code, _, err) = lab.cli(&["validate-config"]);
+    assert_eq!(code, 78, "{err}");
+    assert!(err.contains("not a loopback address"), "{err}");
+    let out = std::process::Command::new(BIN)
+        .args(["daemon", "--config"])
+        .arg(&lab.config)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(78));
+    assert!(!Path::new(&lab.dir.path().join("state/scanmill.sqlite")).exists());
+    let lab = Lab::new(0.3, "[web]\nenabled = true\nlisten = \"localhost\"\n");
+    let (code, _, err) = lab.cli(&["validate-config"]);
+    assert_eq!(code, 78, "{err}");
+    assert!(err.contains("web.listen"), "{err}");
+}
