@@ -411,3 +411,241 @@ fn exposed_address_without_token_or_proxy_is_refused_with_exit_78() {
     assert_eq!(code, 78, "{err}");
     assert!(err.contains("web.listen"), "{err}");
 }
+
+/// A report of the shape the worker records (steps, metrics, outputs), about 3 KB.
+fn synthetic_report(n: i64) -> String {
+    let f = |k: i64| ((n * 7919 + k * 104_729) % 1000) as f64 / 1000.0;
+    let steps: Vec<_> = ["relax", "fair", "decimate", "seam_fix", "normals"]
+        .iter()
+        .map(|kind| {
+            serde_json::json!({"kind": kind, "wall_ms": 800.0 * f(1), "vertices_before": 210_000,
+                "vertices_after": 13_500, "faces_before": 400_000, "faces_after": 26_000,
+                "figures": {"iterations": 20, "moved_rms": f(2), "flips": 3}})
+        })
+        .collect();
+    serde_json::json!({
+        "scanmill_version": "0.1.0",
+        "input": {"path": format!("study/subject{n}/scan.obj"), "content_hash": "ab".repeat(32),
+            "counts": {"vertices": 210_000, "faces": 400_000, "wedges": 0, "texcoords": 220_000, "normals": 0}},
+        "steps": steps,
+        "metrics": {
+            "distance": {"mean": 0.02 * f(3), "rms": 0.03 + 0.01 * f(4), "max": 0.4 * f(5),
+                "mean_relative": 1e-4, "rms_relative": 2e-4, "max_relative": 1e-3, "bbox_diagonal": 250.0,
+                "result_to_reference": {"samples": 100_000, "mean": 0.02, "rms": 0.03, "max": 0.3, "inexact": 0},
+                "reference_to_result": {"samples": 100_000, "mean": 0.02, "rms": 0.03, "max": 0.3, "inexact": 0},
+                "seed": 1},
+            "volume": {"reference": 1.2e6, "result": 1.19e6, "relative_change": -0.008},
+            "normals": {"mean_deg": 4.1, "rms_deg": 6.0, "p99_deg": 25.0, "max_deg": 80.0},
+            "texture": {"status": "measured", "samples": 100_000, "mean": 2.0 + f(6), "rms": 3.0 + f(7), "p99": 12.0, "max": 60.0},
+            "topology": {"holes_before": 3, "holes_after": 3, "cracks": 0, "flips": 2},
+            "wall_ms": 900.0
+        },
+        "output": {"counts": {"vertices": 13_500, "faces": 26_000, "wedges": 0, "texcoords": 15_000, "normals": 13_500}},
+        "load_ms": 500.0, "write_ms": 120.0, "total_ms": 9000.0 + 4000.0 * f(8)
+    })
+    .to_string()
+}
+
+/// Fills a fresh store with `n` finished jobs over two watched folders and 60 days, each
+/// with its attempt(s), inputs, outputs, sighting and step timings, in one transaction.
+fn fill_store(db: &Path, roots: [&str; 2], n: i64) {
+    let store = scanmill::store::Store::open(db).unwrap();
+    let c = store.connection();
+    c.execute_batch("BEGIN").unwrap();
+    let now = scanmill::store::now_ms();
+    let day = 86_400_000i64;
+    let mut job = c
+        .prepare(
+            "INSERT INTO job(id, job_key, set_hash, root, rel_path, output_root, recipe_path, recipe_hash,
+                recipe_json, config_hash, state, attempts, max_attempts, run_after, created_at, updated_at,
+                started_at, finished_at, output_dir, error_kind, error, in_vertices, in_faces, out_vertices,
+                out_faces, process_ms, report_json, preview)
+             VALUES (?1, ?2, ?3, ?4, ?5, '/srv/out', '/etc/scanmill/face-scan.toml', 'rh', ?6, 'ch', ?7, ?8, 3,
+                ?9, ?9, ?10, ?9, ?10, ?11, ?12, ?13, 210000, 400000, 13500, 26000, ?14, ?15, ?16)",
+        )
+        .unwrap();
+    let mut attempt = c
+        .prepare(
+            "INSERT INTO attempt(id, job_id, n, owner, host, app_version, started_at, finished_at, outcome,
+                error_kind, error, wall_ms) VALUES (?1, ?2, ?3, 'pid1', 'lab', '0.1.0', ?4, ?5, ?6, ?7, ?8, 9000)",
+        )
+        .unwrap();
+    let mut output = c
+        .prepare("INSERT INTO job_output(job_id, path, bytes, sha256) VALUES (?1, ?2, 1000000, ?3)")
+        .unwrap();
+    let mut input = c
+        .prepare(
+            "INSERT INTO job_input(job_id, rel_path, role, size, mtime_ns, ino, sha256)
+             VALUES (?1, ?2, ?3, 1000000, 0, ?1, ?4)",
+        )
+        .unwrap();
+    let mut sighting = c
+        .prepare("INSERT INTO sighting(job_id, root, rel_path, seen_at) VALUES (?1, ?2, ?3, ?4)")
+        .unwrap();
+    let mut step = c
+        .prepare(
+            "INSERT INTO step_timing(attempt_id, idx, kind, wall_ms, vertices_before, vertices_after,
+                faces_before, faces_after, figures_json) VALUES (?1, ?2, ?3, 800, 210000, 13500, 400000, 26000, '{}')",
+        )
+        .unwrap();
+    let recipe = r#"{"output":{"format":"obj"},"steps":[{"kind":"relax"},{"kind":"fair"},{"kind":"decimate","target_faces":26000},{"kind":"seam_fix"},{"kind":"normals"}]}"#;
+    let mut attempt_id = 0i64;
+    for id in 1..=n {
+        let root = roots[(id % 7 == 0) as usize];
+        let rel = format!("study{}/subject{id}/scan.obj", id % 40);
+        let created = now - 60 * day + id * (60 * day / n);
+        let finished = created + 10_000;
+        let (state, kind, error) = match id % 50 {
+            0 | 1 => (
+                "failed",
+                Some("parse"),
+                Some(format!("{rel}: line 7: expected 3 numbers")),
+            ),
+            2 => (
+                "quarantined",
+                Some("timeout"),
+                Some("did not finish within job_timeout_secs".to_string()),
+            ),
+            _ => ("done", None, None),
+        };
+        let done = state == "done";
+        let key = format!("{id:064x}");
+        job.execute(rusqlite::params![
+            id,
+            key,
+            key,
+            root,
+            rel,
+            recipe,
+            state,
+            1,
+            created,
+            finished,
+            done.then(|| format!("/srv/out/study{}/subject{id}/scan", id % 40)),
+            kind,
+            error,
+            done.then_some(9000.0 + (id % 13) as f64 * 700.0),
+            done.then(|| synthetic_report(id)),
+            done.then(|| format!(
+                "/srv/out/study{}/subject{id}/scan/scan.preview.png",
+                id % 40
+            )),
+        ])
+        .unwrap();
+        attempt_id += 1;
+        let outcome = if done { "ok" } else { state };
+        attempt
+            .execute(rusqlite::params![
+                attempt_id, id, 1, created, finished, outcome, kind, error
+            ])
+            .unwrap();
+        if done {
+            for (i, k) in ["relax", "fair", "decimate", "seam_fix", "normals"]
+                .iter()
+                .enumerate()
+            {
+                step.execute(rusqlite::params![attempt_id, i as i64 + 1, k])
+                    .unwrap();
+            }
+            for f in ["scan.obj", "scan.mtl", "scan.jpg", "scan.scanmill.json"] {
+                output
+                    .execute(rusqlite::params![
+                        id,
+                        format!("/srv/out/study{}/subject{id}/scan/{f}", id % 40),
+                        key
+                    ])
+                    .unwrap();
+            }
+        }
+        for (f, role) in [
+            ("scan.obj", "mesh"),
+            ("scan.mtl", "mtl"),
+            ("scan.jpg", "texture"),
+        ] {
+            let p = format!("study{}/subject{id}/{f}", id % 40);
+            input.execute(rusqlite::params![id, p, role, key]).unwrap();
+        }
+        sighting
+            .execute(rusqlite::params![id, root, rel, created])
+            .unwrap();
+    }
+    drop((job, attempt, output, input, sighting, step));
+    c.execute_batch("COMMIT").unwrap();
+}
+
+/// Median, 90th percentile and maximum of `runs` GETs of `url` (ms, client side, over
+/// loopback: HTTP included); the body is checked once.
+fn time_get(url: &str, runs: usize) -> (f64, f64, f64, String) {
+    let a = agent();
+    let mut times = Vec::with_capacity(runs);
+    let mut body = String::new();
+    for _ in 0..runs {
+        let start = std::time::Instant::now();
+        let mut r = a.get(url).call().unwrap();
+        let text = r.body_mut().read_to_string().unwrap();
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+        assert_eq!(r.status().as_u16(), 200, "{url}");
+        body = text;
+    }
+    times.sort_by(f64::total_cmp);
+    (times[runs / 2], times[runs * 9 / 10], times[runs - 1], body)
+}
+
+#[test]
+#[ignore = "fills a store with 100,000 jobs (about a minute) and prints page timings; run by hand: \
+            cargo test --test daemon_web page_timings -- --ignored --nocapture"]
+fn page_timings_on_a_store_of_100k_jobs() {
+    let n = std::env::var("SCANMILL_WEB_JOBS").map_or(100_000, |v| v.parse().unwrap());
+    let lab = web_lab("");
+    let root = lab.inbox().to_string_lossy().into_owned();
+    let started = std::time::Instant::now();
+    fill_store(
+        &lab.dir.path().join("state/scanmill.sqlite"),
+        [&root, "/srv/scans/b"],
+        n,
+    );
+    eprintln!(
+        "filled {n} jobs in {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+    let _d = KillOnDrop(lab.start(&[]));
+    let base = base_url(&lab);
+    let day = |back: i64| {
+        scanmill::store::query::iso_time(scanmill::store::now_ms() - back * 86_400_000)[..10]
+            .to_string()
+    };
+    let pages = [
+        ("job list, newest", String::new()),
+        (
+            "job list, a page in the middle",
+            format!("?before={}", n / 2),
+        ),
+        ("job list, state=failed", "?state=failed".into()),
+        (
+            "job list, the smaller folder",
+            "?root=%2Fsrv%2Fscans%2Fb".into(),
+        ),
+        (
+            "job list, 10 days in the middle",
+            format!("?from={}&to={}", day(35), day(25)),
+        ),
+        (
+            "job list, name search (11 hits, whole table)",
+            "?q=subject9999".into(),
+        ),
+        ("job page", format!("jobs/{}", n / 2 + 3)),
+        ("trends (28 days)", "trends".into()),
+        ("health", "health".into()),
+        ("metrics", "metrics".into()),
+    ];
+    eprintln!("{:<46} {:>8} {:>8} {:>8}", "page", "median", "p90", "max");
+    for (name, path) in pages {
+        let url = format!("{base}{path}");
+        let _ = time_get(&url, 2);
+        let (median, p90, max, body) = time_get(&url, 21);
+        if name.starts_with("job list") && !name.contains("search") {
+            assert_eq!(ids(&body).len(), 50, "{name}: a full page");
+        }
+        eprintln!("{name:<46} {median:>6.1}ms {p90:>6.1}ms {max:>6.1}ms");
+    }
+}

@@ -133,9 +133,13 @@ const V2: &str = r#"
 ALTER TABLE job ADD COLUMN preview TEXT;
 "#;
 
-/// The web dashboard's job list (newest first, keyset on `id`) filtered by state or by
-/// watched folder: without these a filter on a rare state walks every job.
+/// The web dashboard (docs/service.md "Web dashboard and metrics"): its job list, newest
+/// first with keyset pagination on `id`, filtered by state, by watched folder or by a part
+/// of the name (a covering scan of `(id, rel_path)` instead of the wide rows), and its
+/// counts and processing-time histogram by state and folder (covering, too).
 const V3: &str = r#"
 CREATE INDEX job_state_id ON job(state, id);
 CREATE INDEX job_root_id ON job(root, id);
+CREATE INDEX job_id_name ON job(id, rel_path);
+CREATE INDEX job_state_root_time ON job(state, root, process_ms);
 "#;

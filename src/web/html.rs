@@ -68,14 +68,14 @@ pub fn page(title: &str, body: &str) -> String {
     )
 }
 
-/// A number with its thousands grouped by thin spaces, or `–`.
+/// A number with its thousands grouped by narrow no-break spaces, or `–`.
 pub fn count(v: Option<i64>) -> String {
     let Some(v) = v else { return "–".into() };
     let digits = v.unsigned_abs().to_string();
     let mut out = String::new();
     for (i, c) in digits.chars().enumerate() {
         if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push('\u{2009}');
+            out.push('\u{202f}');
         }
         out.push(c);
     }
@@ -109,7 +109,7 @@ pub const STYLE: &str = "body{font:14px/1.4 system-ui,sans-serif;margin:0;color:
 nav{background:#234;color:#fff;padding:.6em 1em}nav a{color:#cde;margin-left:1em}\
 main{padding:1em}table{border-collapse:collapse;background:#fff}\
 td,th{border:1px solid #ddd;padding:.25em .5em;text-align:left;vertical-align:top}\
-th{background:#eef}td.n{text-align:right;font-variant-numeric:tabular-nums}\
+th{background:#eef}td.n{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}\
 img.thumb{width:96px;height:auto;background:#eee}img.full{max-width:100%;height:auto}\
 .state-done{color:#070}.state-failed,.state-quarantined{color:#a00}.state-running{color:#05a}\
 form.filters{margin-bottom:1em}form.filters label{margin-right:.8em}\
@@ -148,7 +148,7 @@ mod tests {
 
     #[test]
     fn numbers_for_people() {
-        assert_eq!(count(Some(1234567)), "1\u{2009}234\u{2009}567");
+        assert_eq!(count(Some(1234567)), "1\u{202f}234\u{202f}567");
         assert_eq!(count(None), "–");
         assert_eq!(duration_ms(Some(12_400.0)), "12.4 s");
         assert_eq!(figure(Some(0.000123)), "1.230e-4");

@@ -179,7 +179,21 @@ impl SqliteReader {
 }
 
 const JOB_COLUMNS: &str = "id, state, root, rel_path, created_at, finished_at, in_faces, out_faces,
-    json_extract(report_json, '$.metrics.distance.rms'), process_ms, preview IS NOT NULL, error_kind, error";
+    CASE WHEN json_valid(report_json) THEN json_extract(report_json, '$.metrics.distance.rms') END,
+    process_ms, preview IS NOT NULL, error_kind, error";
+
+/// `text` as a LIKE pattern that matches it anywhere, its own `%`, `_` and `\` literal.
+fn contains_pattern(text: &str) -> String {
+    let mut p = String::from("%");
+    for c in text.chars() {
+        if matches!(c, '%' | '_' | '\\') {
+            p.push('\\');
+        }
+        p.push(c);
+    }
+    p.push('%');
+    p
+}
 
 fn job_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<JobRow> {
     Ok(JobRow {
@@ -200,7 +214,7 @@ fn job_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<JobRow> {
 }
 
 /// The WHERE clause of a list query (only the filters given, so that SQLite can use the
-/// `(state, id)` and `(root, id)` indexes) and its parameters.
+/// indexes of schema version 3 and `job_created`) and its parameters.
 fn job_filter(q: &JobQuery) -> (String, Vec<Box<dyn ToSql>>) {
     let mut clauses: Vec<&str> = Vec::new();
     let mut values: Vec<Box<dyn ToSql>> = Vec::new();
@@ -221,8 +235,9 @@ fn job_filter(q: &JobQuery) -> (String, Vec<Box<dyn ToSql>>) {
         values.push(Box::new(t));
     }
     if let Some(t) = &q.text {
-        clauses.push("instr(lower(rel_path), lower(?)) > 0");
-        values.push(Box::new(t.clone()));
+        // LIKE ignores ASCII case.
+        clauses.push("rel_path LIKE ? ESCAPE '\\'");
+        values.push(Box::new(contains_pattern(t)));
     }
     match q.cursor {
         Cursor::Newest => {}
@@ -251,7 +266,12 @@ impl DashboardReader for SqliteReader {
         } else {
             "DESC"
         };
-        let sql = format!("SELECT {JOB_COLUMNS} FROM job {filter} ORDER BY id {order} LIMIT ?");
+        // The page's ids first, from the indexes alone; then only those (wide) rows.
+        let sql = format!(
+            "SELECT {JOB_COLUMNS} FROM job WHERE id IN
+                (SELECT id FROM job {filter} ORDER BY id {order} LIMIT ?)
+             ORDER BY id {order}"
+        );
         // One more than asked: tells whether there is a further page.
         values.push(Box::new(q.limit as i64 + 1));
         let conn = self.store.connection();
@@ -350,7 +370,16 @@ impl DashboardReader for SqliteReader {
     fn figures(&self, bounds_ms: &[f64]) -> Result<Figures> {
         let conn = self.store.connection();
         let e = |x| self.err(x);
-        let (queue_depth, running) = self.store.counts()?;
+        // Not `Store::counts`: its filter on `retryable` reads every wide row.
+        let (queue_depth, running) = conn
+            .query_row(
+                "SELECT (SELECT count(*) FROM job WHERE state = 'queued')
+                      + (SELECT count(*) FROM job WHERE state = 'failed' AND retryable = 1),
+                        (SELECT count(*) FROM job WHERE state = 'running')",
+                [],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )
+            .map_err(e)?;
         let mut f = Figures {
             queue_depth,
             running,
@@ -443,4 +472,15 @@ fn collect<T>(
     let mut stmt = conn.prepare_cached(sql)?;
     let rows = stmt.query_map(params![], f)?;
     rows.collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::contains_pattern;
+
+    #[test]
+    fn search_text_is_literal_in_the_like_pattern() {
+        assert_eq!(contains_pattern("james"), "%james%");
+        assert_eq!(contains_pattern("50%_a\\b"), "%50\\%\\_a\\\\b%");
+    }
 }
