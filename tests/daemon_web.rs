@@ -191,7 +191,7 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
     assert!(!lower.contains("<script"), "markup injected");
     assert!(!lower.contains("<img src=x"), "markup injected");
     assert!(!page.contains("evil\nname"), "raw newline");
-    assert!(page.contains(&format!("/jobs/{james}/preview")));
+    assert!(page.contains(&format!("/jobs/{james}/thumb")));
 
     // Filters.
     let (_, _, failed) = get(&format!("{base}?state=failed"));
@@ -273,6 +273,21 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
     let png = r.body_mut().read_to_vec().unwrap();
     let img = image::load_from_memory(&png).unwrap();
     assert!(img.width() > 0 && img.height() > 0);
+    let mut r = agent()
+        .get(format!("{base}jobs/{james}/thumb"))
+        .call()
+        .unwrap();
+    assert_eq!(r.headers()["content-type"], "image/png");
+    let thumb = image::load_from_memory(&r.body_mut().read_to_vec().unwrap()).unwrap();
+    assert!(
+        thumb.width() <= 288 && thumb.width() < img.width(),
+        "scaled down"
+    );
+    assert_eq!(
+        get(&format!("{base}jobs/{broken}/thumb")).0,
+        404,
+        "no preview"
+    );
 
     // Unknown jobs and pages, traversal attempts.
     for path in [

@@ -109,7 +109,7 @@ pub const STYLE: &str = "body{font:14px/1.4 system-ui,sans-serif;margin:0;color:
 nav{background:#234;color:#fff;padding:.6em 1em}nav a{color:#cde;margin-left:1em}\
 main{padding:1em}table{border-collapse:collapse;background:#fff}\
 td,th{border:1px solid #ddd;padding:.25em .5em;text-align:left;vertical-align:top}\
-th{background:#eef}td.n{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}\
+th{background:#eef}td.n{text-align:right;white-space:nowrap;font-variant-numeric:tabular-nums}td.t{white-space:nowrap}\
 img.thumb{width:96px;height:auto;background:#eee}img.full{max-width:100%;height:auto}\
 .state-done{color:#070}.state-failed,.state-quarantined{color:#a00}.state-running{color:#05a}\
 form.filters{margin-bottom:1em}form.filters label{margin-right:.8em}\

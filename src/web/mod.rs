@@ -17,6 +17,7 @@ mod pages;
 pub mod params;
 mod prometheus;
 pub mod reader;
+mod thumbs;
 mod trends;
 
 pub use config::WebConfig;
@@ -108,6 +109,7 @@ struct Shared {
     /// The configured output folders, every link resolved.
     outputs: Vec<PathBuf>,
     token: Option<String>,
+    thumbs: thumbs::Thumbs,
 }
 
 /// What the daemon hands the dashboard.
@@ -146,6 +148,7 @@ pub fn start(
             .map(|o| crate::config::resolved(o))
             .collect(),
         token: setup.config.token.clone(),
+        thumbs: thumbs::Thumbs::default(),
     });
     let app = router(shared);
     runtime.spawn(async move {
@@ -168,6 +171,7 @@ fn router(shared: Arc<Shared>) -> Router {
         .route("/", get(jobs))
         .route("/jobs/{id}", get(job))
         .route("/jobs/{id}/preview", get(preview))
+        .route("/jobs/{id}/thumb", get(thumb))
         .route("/trends", get(trends_handler))
         .route("/health", get(health))
         .route("/metrics", get(metrics))
@@ -283,6 +287,23 @@ async fn preview(
     let (bytes, kind) =
         found.ok_or_else(|| WebError::NotFound(format!("job {id} has no preview")))?;
     Ok(([(header::CONTENT_TYPE, kind)], bytes))
+}
+
+/// The preview scaled down for the job list (PNG).
+async fn thumb(
+    State(shared): State<Arc<Shared>>,
+    UrlPath(id): UrlPath<String>,
+) -> Result<impl IntoResponse, WebError> {
+    let id = job_id(&id)?;
+    let worker = shared.clone();
+    let found = read(&shared, move |r| {
+        Ok(r.preview(id)?
+            .and_then(|(file, root)| load_preview(&file, &root, &worker.outputs))
+            .and_then(|(bytes, _)| worker.thumbs.get(id, &bytes)))
+    })
+    .await?;
+    let png = found.ok_or_else(|| WebError::NotFound(format!("job {id} has no preview")))?;
+    Ok(([(header::CONTENT_TYPE, "image/png")], png.as_ref().clone()))
 }
 
 /// The recorded preview of a job, if it is a PNG or JPEG regular file that lies, every

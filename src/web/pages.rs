@@ -71,7 +71,7 @@ fn filter_form(q: &JobQuery, roots: &[String], from: &str, to: &str) -> String {
 fn job_list_row(r: &JobRow) -> String {
     let thumb = if r.has_preview {
         format!(
-            "<a href=\"/jobs/{0}\"><img class=\"thumb\" src=\"/jobs/{0}/preview\" alt=\"preview of job {0}\" loading=\"lazy\"></a>",
+            "<a href=\"/jobs/{0}\"><img class=\"thumb\" src=\"/jobs/{0}/thumb\" alt=\"preview of job {0}\" loading=\"lazy\"></a>",
             r.id
         )
     } else {
@@ -87,7 +87,7 @@ fn job_list_row(r: &JobRow) -> String {
         "<tr><td>{thumb}</td><td class=\"n\"><a href=\"/jobs/{id}\">{id}</a></td>\
          <td class=\"state-{state}\">{state}</td><td><a href=\"/jobs/{id}\"><code>{input}</code></a>\
          <br><small>{root}</small> {detail}</td><td class=\"n\">{fin} → {fout}</td>\
-         <td class=\"n\">{rms}</td><td class=\"n\">{time}</td><td>{created}</td></tr>\n",
+         <td class=\"n\">{rms}</td><td class=\"n\">{time}</td><td class=\"t\">{created}</td></tr>\n",
         id = r.id,
         state = esc(&r.state),
         input = shown(&input),
