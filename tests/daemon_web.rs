@@ -135,10 +135,21 @@ fn strict_exposition(text: &str) {
     }
 }
 
-#[test]
-fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
+/// The running daemon with its jobs processed: a real scan, three hostile names and a
+/// broken file.
+struct Site {
+    base: String,
+    james: i64,
+    broken: i64,
+    /// The watched folder, resolved.
+    root: std::path::PathBuf,
+    /// The first job's queued day, `YYYY-MM-DD`.
+    today: String,
+}
+
+fn hostile_lab() -> (Lab, KillOnDrop, Site) {
     let lab = web_lab("");
-    let _d = KillOnDrop(lab.start(&[]));
+    let daemon = KillOnDrop(lab.start(&[]));
     let base = base_url(&lab);
     let inbox = lab.inbox();
     copy_james(&inbox.join("session1"));
@@ -172,8 +183,20 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
         .as_i64()
         .unwrap();
 
+    let site = Site {
+        root: lab.inbox().canonicalize().unwrap(),
+        today: serde_json::to_string(&jobs[0]["created"]).unwrap()[1..11].to_string(),
+        base,
+        james,
+        broken,
+    };
+    (lab, daemon, site)
+}
+
+fn check_list(site: &Site) -> Vec<i64> {
+    let (base, james) = (site.base.as_str(), site.james);
     // The list: every job, newest first, names escaped.
-    let (code, kind, page) = get(&base);
+    let (code, kind, page) = get(base);
     assert_eq!(code, 200);
     assert!(kind.starts_with("text/html"), "{kind}");
     let all = ids(&page);
@@ -192,7 +215,11 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
     assert!(!lower.contains("<img src=x"), "markup injected");
     assert!(!page.contains("evil\nname"), "raw newline");
     assert!(page.contains(&format!("/jobs/{james}/thumb")));
+    all
+}
 
+fn check_filters(site: &Site) {
+    let (base, james, broken) = (site.base.as_str(), site.james, site.broken);
     // Filters.
     let (_, _, failed) = get(&format!("{base}?state=failed"));
     let (_, _, quarantined) = get(&format!("{base}?state=quarantined"));
@@ -207,7 +234,7 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
         "name search"
     );
     assert_eq!(ids(&get(&format!("{base}?q=%3Cscript")).2).len(), 1);
-    let root = lab.inbox().canonicalize().unwrap();
+    let root = &site.root;
     let root_q: String = root
         .to_string_lossy()
         .bytes()
@@ -216,7 +243,7 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
     assert_eq!(ids(&get(&format!("{base}?root={root_q}")).2).len(), 5);
     assert!(ids(&get(&format!("{base}?root=%2Fnowhere")).2).is_empty());
     assert!(ids(&get(&format!("{base}?from=2000-01-01&to=2000-01-31")).2).is_empty());
-    let today = &serde_json::to_string(&jobs[0]["created"]).unwrap()[1..11];
+    let today = &site.today;
     assert_eq!(
         ids(&get(&format!("{base}?from={today}&to={today}")).2).len(),
         5
@@ -224,7 +251,10 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
     for bad in ["?state=exploded", "?before=x", "?from=2026-02-30", "?n=0"] {
         assert_eq!(get(&format!("{base}{bad}")).0, 400, "{bad}");
     }
+}
 
+fn check_pagination(site: &Site, all: &[i64]) {
+    let base = site.base.as_str();
     // Keyset pagination, two at a time: older pages reach every job once, newer comes back.
     let mut seen = Vec::new();
     let mut url = format!("{base}?n=2");
@@ -246,9 +276,11 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
         ids(&get(&format!("{}{}", base.trim_end_matches('/'), back)).2),
         ids(&pages[0])
     );
+}
 
+fn check_job_page(site: &Site, shown: &serde_json::Value) {
+    let (base, james, broken) = (site.base.as_str(), site.james, site.broken);
     // The job page: what `show` gives.
-    let shown = lab.show(james);
     let (code, _, page) = get(&format!("{base}jobs/{james}"));
     assert_eq!(code, 200);
     for output in shown["outputs"].as_array().unwrap() {
@@ -262,7 +294,10 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
     assert_eq!(code, 200);
     assert!(page.contains("&lt;img src=x onerror=alert(1)&gt;"));
     assert!(!page.to_lowercase().contains("<img src=x"));
+}
 
+fn check_images(site: &Site) {
+    let (base, james, broken) = (site.base.as_str(), site.james, site.broken);
     // The preview, by job id only.
     let mut r = agent()
         .get(format!("{base}jobs/{james}/preview"))
@@ -288,7 +323,10 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
         404,
         "no preview"
     );
+}
 
+fn check_refusals(site: &Site) {
+    let base = site.base.as_str();
     // Unknown jobs and pages, traversal attempts.
     for path in [
         "jobs/999999",
@@ -307,24 +345,27 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
         "/static/../../Cargo.toml",
         "/jobs/%2e%2e/preview",
     ] {
-        let (code, text) = raw_get(&base, path);
+        let (code, text) = raw_get(base, path);
         assert!(code == 404 || code == 400, "{path}: {code}");
         assert!(!text.contains("root:x:0"), "{path}");
     }
     // Read-only: no other method.
-    let code = agent().post(&base).send_empty().unwrap().status().as_u16();
+    let code = agent().post(base).send_empty().unwrap().status().as_u16();
     assert_eq!(code, 405);
 
     // Security headers on every page.
-    let r = agent().get(&base).call().unwrap();
+    let r = agent().get(base).call().unwrap();
     let csp = r.headers()["content-security-policy"].to_str().unwrap();
     assert!(csp.contains("default-src 'none'"), "{csp}");
+}
 
+fn check_trends_and_health(site: &Site) {
+    let (base, broken) = (site.base.as_str(), site.broken);
     // Trends and Health.
     let (code, _, page) = get(&format!("{base}trends"));
     assert_eq!(code, 200);
     assert!(page.contains("<svg") && page.contains("<circle"), "{page}");
-    assert!(page.contains(&root.to_string_lossy().to_string()));
+    assert!(page.contains(&site.root.to_string_lossy().to_string()));
     assert_eq!(get(&format!("{base}trends?days=0")).0, 400);
     let (code, _, page) = get(&format!("{base}health"));
     assert_eq!(code, 200);
@@ -334,7 +375,10 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
         page.contains(&format!("job {broken}")),
         "last error: {page}"
     );
+}
 
+fn check_metrics(site: &Site) {
+    let base = site.base.as_str();
     // /metrics through a Prometheus parser, and a strict line check.
     let (code, kind, text) = get(&format!("{base}metrics"));
     assert_eq!(code, 200);
@@ -377,6 +421,19 @@ fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
     assert_eq!(buckets.last().unwrap().count, 4.0, "+Inf bucket");
     assert!(buckets.windows(2).all(|w| w[0].count <= w[1].count));
     assert_eq!(sum("scanmill_job_processing_seconds_count", None), 4.0);
+}
+
+#[test]
+fn dashboard_lists_filters_pages_escapes_and_exports_metrics() {
+    let (lab, _daemon, site) = hostile_lab();
+    let all = check_list(&site);
+    check_filters(&site);
+    check_pagination(&site, &all);
+    check_job_page(&site, &lab.show(site.james));
+    check_images(&site);
+    check_refusals(&site);
+    check_trends_and_health(&site);
+    check_metrics(&site);
 }
 
 #[test]
@@ -462,130 +519,120 @@ fn synthetic_report(n: i64) -> String {
 }
 
 /// Fills a fresh store with `n` finished jobs over two watched folders and 60 days, each
-/// with its attempt(s), inputs, outputs, sighting and step timings, in one transaction.
+/// with its attempt, inputs, outputs, sighting and step timings, in one transaction.
 fn fill_store(db: &Path, roots: [&str; 2], n: i64) {
     let store = scanmill::store::Store::open(db).unwrap();
     let c = store.connection();
     c.execute_batch("BEGIN").unwrap();
     let now = scanmill::store::now_ms();
     let day = 86_400_000i64;
-    let mut job = c
-        .prepare(
-            "INSERT INTO job(id, job_key, set_hash, root, rel_path, output_root, recipe_path, recipe_hash,
-                recipe_json, config_hash, state, attempts, max_attempts, run_after, created_at, updated_at,
-                started_at, finished_at, output_dir, error_kind, error, in_vertices, in_faces, out_vertices,
-                out_faces, process_ms, report_json, preview)
-             VALUES (?1, ?2, ?3, ?4, ?5, '/srv/out', '/etc/scanmill/face-scan.toml', 'rh', ?6, 'ch', ?7, ?8, 3,
-                ?9, ?9, ?10, ?9, ?10, ?11, ?12, ?13, 210000, 400000, 13500, 26000, ?14, ?15, ?16)",
-        )
-        .unwrap();
-    let mut attempt = c
-        .prepare(
-            "INSERT INTO attempt(id, job_id, n, owner, host, app_version, started_at, finished_at, outcome,
-                error_kind, error, wall_ms) VALUES (?1, ?2, ?3, 'pid1', 'lab', '0.1.0', ?4, ?5, ?6, ?7, ?8, 9000)",
-        )
-        .unwrap();
-    let mut output = c
-        .prepare("INSERT INTO job_output(job_id, path, bytes, sha256) VALUES (?1, ?2, 1000000, ?3)")
-        .unwrap();
-    let mut input = c
-        .prepare(
+    for id in 1..=n {
+        let root = roots[(id % 7 == 0) as usize];
+        let created = now - 60 * day + id * (60 * day / n);
+        insert_job(c, id, root, created);
+    }
+    c.execute_batch("COMMIT").unwrap();
+}
+
+const RECIPE: &str = r#"{"output":{"format":"obj"},"steps":[{"kind":"relax"},{"kind":"fair"},{"kind":"decimate","target_faces":26000},{"kind":"seam_fix"},{"kind":"normals"}]}"#;
+
+/// One job as the daemon records it (attempt id = job id): every 50 jobs, two failed and
+/// one quarantined.
+fn insert_job(c: &rusqlite::Connection, id: i64, root: &str, created: i64) {
+    let dir = format!("study{}/subject{id}", id % 40);
+    let rel = format!("{dir}/scan.obj");
+    let finished = created + 10_000;
+    let (state, kind, error) = match id % 50 {
+        0 | 1 => (
+            "failed",
+            Some("input"),
+            Some(format!("{rel}: line 7: expected 3 numbers")),
+        ),
+        2 => (
+            "quarantined",
+            Some("timeout"),
+            Some("did not finish within job_timeout_secs".into()),
+        ),
+        _ => ("done", None, None),
+    };
+    let done = state == "done";
+    let key = format!("{id:064x}");
+    c.prepare_cached(
+        "INSERT INTO job(id, job_key, set_hash, root, rel_path, output_root, recipe_path, recipe_hash,
+            recipe_json, config_hash, state, attempts, max_attempts, run_after, created_at, updated_at,
+            started_at, finished_at, output_dir, error_kind, error, in_vertices, in_faces, out_vertices,
+            out_faces, process_ms, report_json, preview)
+         VALUES (?1, ?2, ?2, ?3, ?4, '/srv/out', '/etc/scanmill/face-scan.toml', 'rh', ?5, 'ch', ?6, 1, 3,
+            ?7, ?7, ?8, ?7, ?8, ?9, ?10, ?11, 210000, 400000, 13500, 26000, ?12, ?13, ?14)",
+    )
+    .unwrap()
+    .execute(rusqlite::params![
+        id, key, root, rel, RECIPE, state, created, finished,
+        done.then(|| format!("/srv/out/{dir}/scan")),
+        kind, error,
+        done.then_some(9000.0 + (id % 13) as f64 * 700.0),
+        done.then(|| synthetic_report(id)),
+        done.then(|| format!("/srv/out/{dir}/scan/scan.preview.png")),
+    ])
+    .unwrap();
+    let outcome = if done { "ok" } else { state };
+    c.prepare_cached(
+        "INSERT INTO attempt(id, job_id, n, owner, host, app_version, started_at, finished_at, outcome,
+            error_kind, error, wall_ms) VALUES (?1, ?1, 1, 'pid1', 'lab', '0.1.0', ?2, ?3, ?4, ?5, ?6, 9000)",
+    )
+    .unwrap()
+    .execute(rusqlite::params![id, created, finished, outcome, kind, error])
+    .unwrap();
+    if done {
+        insert_results(c, id, &dir, &key);
+    }
+    for (f, role) in [
+        ("scan.obj", "mesh"),
+        ("scan.mtl", "mtl"),
+        ("scan.jpg", "texture"),
+    ] {
+        c.prepare_cached(
             "INSERT INTO job_input(job_id, rel_path, role, size, mtime_ns, ino, sha256)
              VALUES (?1, ?2, ?3, 1000000, 0, ?1, ?4)",
         )
+        .unwrap()
+        .execute(rusqlite::params![id, format!("{dir}/{f}"), role, key])
         .unwrap();
-    let mut sighting = c
-        .prepare("INSERT INTO sighting(job_id, root, rel_path, seen_at) VALUES (?1, ?2, ?3, ?4)")
-        .unwrap();
-    let mut step = c
-        .prepare(
+    }
+    c.prepare_cached(
+        "INSERT INTO sighting(job_id, root, rel_path, seen_at) VALUES (?1, ?2, ?3, ?4)",
+    )
+    .unwrap()
+    .execute(rusqlite::params![id, root, rel, created])
+    .unwrap();
+}
+
+/// A finished job's step timings and output files.
+fn insert_results(c: &rusqlite::Connection, id: i64, dir: &str, key: &str) {
+    for (i, k) in ["relax", "fair", "decimate", "seam_fix", "normals"]
+        .iter()
+        .enumerate()
+    {
+        c.prepare_cached(
             "INSERT INTO step_timing(attempt_id, idx, kind, wall_ms, vertices_before, vertices_after,
                 faces_before, faces_after, figures_json) VALUES (?1, ?2, ?3, 800, 210000, 13500, 400000, 26000, '{}')",
         )
+        .unwrap()
+        .execute(rusqlite::params![id, i as i64 + 1, k])
         .unwrap();
-    let recipe = r#"{"output":{"format":"obj"},"steps":[{"kind":"relax"},{"kind":"fair"},{"kind":"decimate","target_faces":26000},{"kind":"seam_fix"},{"kind":"normals"}]}"#;
-    let mut attempt_id = 0i64;
-    for id in 1..=n {
-        let root = roots[(id % 7 == 0) as usize];
-        let rel = format!("study{}/subject{id}/scan.obj", id % 40);
-        let created = now - 60 * day + id * (60 * day / n);
-        let finished = created + 10_000;
-        let (state, kind, error) = match id % 50 {
-            0 | 1 => (
-                "failed",
-                Some("parse"),
-                Some(format!("{rel}: line 7: expected 3 numbers")),
-            ),
-            2 => (
-                "quarantined",
-                Some("timeout"),
-                Some("did not finish within job_timeout_secs".to_string()),
-            ),
-            _ => ("done", None, None),
-        };
-        let done = state == "done";
-        let key = format!("{id:064x}");
-        job.execute(rusqlite::params![
+    }
+    for f in ["scan.obj", "scan.mtl", "scan.jpg", "scan.scanmill.json"] {
+        c.prepare_cached(
+            "INSERT INTO job_output(job_id, path, bytes, sha256) VALUES (?1, ?2, 1000000, ?3)",
+        )
+        .unwrap()
+        .execute(rusqlite::params![
             id,
-            key,
-            key,
-            root,
-            rel,
-            recipe,
-            state,
-            1,
-            created,
-            finished,
-            done.then(|| format!("/srv/out/study{}/subject{id}/scan", id % 40)),
-            kind,
-            error,
-            done.then_some(9000.0 + (id % 13) as f64 * 700.0),
-            done.then(|| synthetic_report(id)),
-            done.then(|| format!(
-                "/srv/out/study{}/subject{id}/scan/scan.preview.png",
-                id % 40
-            )),
+            format!("/srv/out/{dir}/scan/{f}"),
+            key
         ])
         .unwrap();
-        attempt_id += 1;
-        let outcome = if done { "ok" } else { state };
-        attempt
-            .execute(rusqlite::params![
-                attempt_id, id, 1, created, finished, outcome, kind, error
-            ])
-            .unwrap();
-        if done {
-            for (i, k) in ["relax", "fair", "decimate", "seam_fix", "normals"]
-                .iter()
-                .enumerate()
-            {
-                step.execute(rusqlite::params![attempt_id, i as i64 + 1, k])
-                    .unwrap();
-            }
-            for f in ["scan.obj", "scan.mtl", "scan.jpg", "scan.scanmill.json"] {
-                output
-                    .execute(rusqlite::params![
-                        id,
-                        format!("/srv/out/study{}/subject{id}/scan/{f}", id % 40),
-                        key
-                    ])
-                    .unwrap();
-            }
-        }
-        for (f, role) in [
-            ("scan.obj", "mesh"),
-            ("scan.mtl", "mtl"),
-            ("scan.jpg", "texture"),
-        ] {
-            let p = format!("study{}/subject{id}/{f}", id % 40);
-            input.execute(rusqlite::params![id, p, role, key]).unwrap();
-        }
-        sighting
-            .execute(rusqlite::params![id, root, rel, created])
-            .unwrap();
     }
-    drop((job, attempt, output, input, sighting, step));
-    c.execute_batch("COMMIT").unwrap();
 }
 
 /// Median, 90th percentile and maximum of `runs` GETs of `url` (ms, client side, over
