@@ -294,6 +294,10 @@ fn check_job_page(site: &Site, shown: &serde_json::Value) {
     assert_eq!(code, 200);
     assert!(page.contains("&lt;img src=x onerror=alert(1)&gt;"));
     assert!(!page.to_lowercase().contains("<img src=x"));
+    assert!(
+        page.contains("<h2>Metrics</h2><p>none recorded</p>"),
+        "{page}"
+    );
 }
 
 fn check_images(site: &Site) {

@@ -226,7 +226,9 @@ pub fn job_page(id: i64, job: &Value) -> String {
     body.push_str("<h2>Job</h2>");
     body.push_str(&key_value_table(&summary));
     let mut metrics = Vec::new();
-    flatten("", &job["report"]["metrics"], &mut metrics);
+    if job["report"]["metrics"].is_object() {
+        flatten("", &job["report"]["metrics"], &mut metrics);
+    }
     body.push_str("<h2>Metrics</h2>");
     body.push_str(&if metrics.is_empty() {
         "<p>none recorded</p>".into()
@@ -353,4 +355,34 @@ pub fn message_page(title: &str, message: &str) -> String {
         title,
         &format!("<h1>{}</h1><p>{}</p>", esc(title), shown(message)),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn job_page_of_a_failed_job_escapes_and_has_no_metric_rows() {
+        let job = serde_json::json!({
+            "rel_path": "x<script>.ply", "state": "failed", "preview": null, "report": null,
+            "error": "bad \"name\"\n<img src=x>", "recipe": {"steps": [{"kind": "<b>"}]},
+            "attempts_log": [], "outputs": [], "inputs": [], "sightings": []
+        });
+        let page = job_page(3, &job);
+        assert!(
+            page.contains("<h2>Metrics</h2><p>none recorded</p>"),
+            "{page}"
+        );
+        assert!(page.contains("x&lt;script&gt;.ply"));
+        assert!(
+            page.contains("bad &quot;name&quot;\\n&lt;img src=x&gt;"),
+            "{page}"
+        );
+        assert!(page.contains("&quot;&lt;b&gt;&quot;"), "recipe escaped");
+        assert!(!page.contains("<script") && !page.contains("<img src=x"));
+        assert!(
+            !page.contains("id=\"preview\""),
+            "no preview without a file"
+        );
+    }
 }
