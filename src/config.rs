@@ -192,6 +192,11 @@ pub struct DaemonConfig {
     pub job_cpu_secs: u64,
     #[serde(default)]
     pub watch: Vec<WatchConfig>,
+    /// The web dashboard and `/metrics` (`[web]`, off unless `enabled`). Not part of
+    /// [`DaemonConfig::hash`]: it does not change what a job produces, and the token is a
+    /// secret that has no business in the audit log.
+    #[serde(default, skip_serializing)]
+    pub web: crate::web::WebConfig,
 }
 
 impl DaemonConfig {
@@ -213,6 +218,7 @@ impl DaemonConfig {
             limits: InputLimits::default(),
             job_memory_mb: 0,
             job_cpu_secs: 0,
+            web: crate::web::WebConfig::default(),
             watch: vec![WatchConfig {
                 path: PathBuf::from("./inbox"),
                 output: PathBuf::from("./outbox"),
@@ -357,6 +363,7 @@ impl DaemonConfig {
             &mut problems,
         );
         problems.extend(self.limits.validate());
+        problems.extend(self.web.validate());
         if self.watch.is_empty() {
             problems.push("no [[watch]] folder configured".into());
         }

@@ -13,3 +13,4 @@ pub mod recipe;
 pub mod report;
 pub mod store;
 pub mod text;
+pub mod web;

@@ -92,6 +92,8 @@ struct Service {
     unrecorded: Vec<(i64, JobResult)>,
     /// The current pause after a busy database; reset once a turn of the loop succeeds.
     busy_pause: Duration,
+    /// What the web dashboard shows of the loop's state.
+    live: crate::web::Live,
 }
 
 const DEBOUNCE: Duration = Duration::from_millis(100);
@@ -209,6 +211,10 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
             context: "tokio runtime".into(),
             source,
         })?;
+    let live = crate::web::Live::new(config.workers);
+    if config.web.enabled {
+        start_web(&runtime, &config, &roots, live.clone())?;
+    }
     let (results_tx, results_rx) = mpsc::unbounded_channel();
     let (hints_tx, hints_rx) = mpsc::channel(256);
     let service = Service {
@@ -231,10 +237,41 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
         counts: (0, 0),
         unrecorded: Vec::new(),
         busy_pause: Duration::ZERO,
+        live,
     };
     let result = runtime.block_on(service.main_loop(results_rx, hints_rx, content_rx));
     drop(lock);
     result
+}
+
+/// Starts the web dashboard on the service's runtime (docs/service.md "Web dashboard and
+/// metrics"); a listen address that cannot be bound stops the daemon before it is ready.
+fn start_web(
+    runtime: &tokio::runtime::Runtime,
+    config: &DaemonConfig,
+    roots: &[RootRuntime],
+    live: crate::web::Live,
+) -> Result<(), ServiceError> {
+    use crate::text::escape_path;
+    let setup = crate::web::Setup {
+        config: config.web.clone(),
+        database: config.database_path(),
+        live,
+        roots: roots
+            .iter()
+            .map(|r| {
+                let (p, o, rc) = (&r.path, &r.output, &r.recipe_path);
+                (escape_path(p), escape_path(o), escape_path(rc))
+            })
+            .collect(),
+        outputs: roots.iter().map(|r| r.output.clone()).collect(),
+    };
+    let addr = crate::web::start(runtime, setup).map_err(|source| ServiceError::Io {
+        context: format!("web.listen {}", crate::text::escape_str(&config.web.listen)),
+        source,
+    })?;
+    tracing::info!("web dashboard on http://{addr}/");
+    Ok(())
 }
 
 impl Service {
@@ -732,25 +769,32 @@ impl Service {
         Ok(())
     }
 
+    fn daemon_state(&self) -> crate::web::DaemonState {
+        use crate::web::DaemonState;
+        if self.stopping {
+            DaemonState::Draining
+        } else if let Some(p) = &self.paused {
+            DaemonState::Paused(p.clone())
+        } else if self.counts.1 > 0 {
+            DaemonState::Working
+        } else {
+            DaemonState::Idle
+        }
+    }
+
     fn status_line(&self) -> Result<String, ServiceError> {
         let (queued, running) = self.counts;
-        let state = if self.stopping {
-            "draining"
-        } else if let Some(p) = &self.paused {
-            p.as_str()
-        } else if running > 0 {
-            "working"
-        } else {
-            "idle"
-        };
         Ok(format!(
-            "{state}; queue={queued}; running={running}; waiting={}",
+            "{}; queue={queued}; running={running}; waiting={}",
+            self.daemon_state().label(),
             self.tracker.pending()
         ))
     }
 
     fn update_status(&mut self) -> Result<(), ServiceError> {
         let line = self.status_line()?;
+        self.live
+            .set(self.daemon_state(), self.running.len() as i64);
         if line != self.last_status {
             self.notifier.status(&line);
             tracing::debug!("{line}");
@@ -766,6 +810,8 @@ impl Service {
         sigint: &mut tokio::signal::unix::Signal,
     ) -> Result<(), ServiceError> {
         self.stopping = true;
+        self.live
+            .set(self.daemon_state(), self.running.len() as i64);
         self.notifier.stopping();
         for r in &mut self.roots {
             r.watcher = None;

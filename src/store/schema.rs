@@ -4,7 +4,7 @@
 //! keeps the audit trail of when each was applied and by which version of scanmill.
 
 /// Migration `i` brings the schema from version `i` to `i + 1`.
-pub const MIGRATIONS: &[&str] = &[V1, V2];
+pub const MIGRATIONS: &[&str] = &[V1, V2, V3];
 
 /// The newest schema version this binary knows.
 pub const LATEST: u32 = MIGRATIONS.len() as u32;
@@ -131,4 +131,15 @@ CREATE TABLE waiting (
 /// The preview picture of a finished job (absolute path; NULL when none was drawn).
 const V2: &str = r#"
 ALTER TABLE job ADD COLUMN preview TEXT;
+"#;
+
+/// The web dashboard (docs/service.md "Web dashboard and metrics"): its job list, newest
+/// first with keyset pagination on `id`, filtered by state, by watched folder or by a part
+/// of the name (a covering scan of `(id, rel_path)` instead of the wide rows), and its
+/// counts and processing-time histogram by state and folder (covering, too).
+const V3: &str = r#"
+CREATE INDEX job_state_id ON job(state, id);
+CREATE INDEX job_root_id ON job(root, id);
+CREATE INDEX job_id_name ON job(id, rel_path);
+CREATE INDEX job_state_root_time ON job(state, root, process_ms);
 "#;
