@@ -16,17 +16,18 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
+/// Paths are shown escaped (a newline in a file name must not split the one-line error).
 #[derive(Debug, thiserror::Error)]
 pub enum RecipeError {
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", crate::text::escape_path(path))]
     Io {
         path: PathBuf,
         #[source]
         source: std::io::Error,
     },
-    #[error("{path}: {message}")]
+    #[error("{}: {message}", crate::text::escape_path(path))]
     Parse { path: PathBuf, message: String },
-    #[error("{path}: line {line}: step `{kind}`: {message}")]
+    #[error("{}: line {line}: step `{kind}`: {message}", crate::text::escape_path(path))]
     Invalid {
         path: PathBuf,
         line: usize,
