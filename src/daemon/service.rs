@@ -18,6 +18,7 @@ use super::systemd::{Notifier, StateLock, free_bytes};
 use super::worker::{self, JobResult, JobSpec, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
+use crate::store::FailureKind;
 use crate::store::{
     ClaimedJob, Enqueued, FinalState, Finish, NewJob, Owner, Store, StoreError, now_ms,
 };
@@ -557,7 +558,7 @@ impl Service {
                     Ok(r) => (Arc::new(r), PathBuf::from(&job.recipe_path)),
                     Err(e) => {
                         let f = Finish::Failed {
-                            kind: "recipe".into(),
+                            kind: FailureKind::Recipe,
                             message: e.to_string(),
                             transient: false,
                         };
@@ -589,7 +590,7 @@ impl Service {
                 });
             if let Err(e) = spawned {
                 let f = Finish::Failed {
-                    kind: "spawn".into(),
+                    kind: FailureKind::Spawn,
                     message: e.to_string(),
                     transient: true,
                 };
@@ -715,7 +716,7 @@ impl Service {
             let r = &self.running[&id];
             self.work_maybe = true;
             let f = Finish::Failed {
-                kind: "timeout".into(),
+                kind: FailureKind::Timeout,
                 message: format!(
                     "its supervisor did not finish within job_timeout_secs = {} plus {} s (stuck writing or publishing?); abandoned, it cannot publish",
                     self.config.job_timeout_secs,

@@ -5,10 +5,12 @@
 //! IMMEDIATE`, so that a reader turned writer can never fail on a stale snapshot. The
 //! daemon owns one connection; the command line opens its own, short-lived ones.
 
+mod failure;
 pub mod query;
 pub mod relpath;
 pub mod schema;
 
+pub use failure::FailureKind;
 pub use relpath::RelPath;
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
@@ -149,7 +151,7 @@ pub enum Finish {
     },
     /// Failed; retried later if `transient` and attempts remain.
     Failed {
-        kind: String,
+        kind: FailureKind,
         message: String,
         transient: bool,
     },
@@ -393,7 +395,10 @@ impl Store {
         let result = match existing {
             Some((id, state, kind))
                 if state == "failed"
-                    && matches!(kind.as_deref(), Some("input_vanished" | "input_changed")) =>
+                    && kind
+                        .as_deref()
+                        .and_then(FailureKind::from_name)
+                        .is_some_and(FailureKind::is_input_gone) =>
             {
                 // The input is back, complete and quiet: point the job at where it is now.
                 tx.execute(
@@ -616,7 +621,7 @@ impl Store {
                     job.attempt_id,
                     now,
                     outcome,
-                    Some(kind),
+                    Some(*kind),
                     Some(&message),
                     wall_ms,
                 )
@@ -635,7 +640,7 @@ impl Store {
                     job.attempt_id,
                     now,
                     "interrupted",
-                    Some("interrupted"),
+                    Some(FailureKind::Interrupted),
                     Some(reason),
                     wall_ms,
                 )
@@ -661,18 +666,18 @@ impl Store {
         };
         let tx = self.immediate()?;
         tx.execute(
-            "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind='daemon_stopped',
+            "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind=?2,
                 error='the daemon stopped while this attempt ran (counted as an attempt)'
              WHERE outcome IS NULL AND job_id IN (SELECT id FROM job WHERE state='running')",
-            [now],
+            params![now, FailureKind::DaemonStopped],
         )
         .map_err(sq)?;
         tx.execute(
             "UPDATE job SET state='quarantined', retryable=0, finished_at=?1, updated_at=?1,
-                lease_owner=NULL, error_kind='daemon_stopped',
+                lease_owner=NULL, error_kind=?2,
                 error='the daemon stopped while this job ran, on each of its ' || attempts || ' attempts'
              WHERE state='running' AND attempts >= max_attempts",
-            [now],
+            params![now, FailureKind::DaemonStopped],
         )
         .map_err(sq)?;
         let n = tx
@@ -837,7 +842,7 @@ fn close_attempt(
     attempt_id: i64,
     now: i64,
     outcome: &str,
-    kind: Option<&str>,
+    kind: Option<FailureKind>,
     message: Option<&str>,
     wall_ms: f64,
 ) -> rusqlite::Result<()> {

@@ -40,7 +40,7 @@ fn open() -> (tempfile::TempDir, Store) {
 
 fn failed(transient: bool) -> Finish {
     Finish::Failed {
-        kind: "io".into(),
+        kind: FailureKind::Output,
         message: "boom".into(),
         transient,
     }
@@ -249,7 +249,7 @@ fn vanished_input_job_is_revived_when_input_returns() {
     s.enqueue(&job("k1", "a.ply")).unwrap();
     let c = s.claim(&owner()).unwrap().unwrap();
     let gone = Finish::Failed {
-        kind: "input_vanished".into(),
+        kind: FailureKind::InputVanished,
         message: "gone".into(),
         transient: false,
     };
@@ -328,7 +328,7 @@ fn a_huge_failure_message_is_cut_when_recorded() {
     s.enqueue(&job("k1", "a.ply")).unwrap();
     let c = s.claim(&owner()).unwrap().unwrap();
     let f = Finish::Failed {
-        kind: "input".into(),
+        kind: FailureKind::Input,
         message: "é".repeat(100_000),
         transient: false,
     };
