@@ -18,9 +18,9 @@ use super::systemd::{Notifier, StateLock, free_bytes};
 use super::worker::{self, JobResult, JobSpec, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
-use crate::store::FailureKind;
 use crate::store::{
-    ClaimedJob, Enqueued, FinalState, Finish, NewJob, Owner, Store, StoreError, now_ms,
+    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, NewJob, Owner, RetryPolicy, Store,
+    StoreError, now_ms,
 };
 use std::collections::HashMap;
 use std::os::unix::fs::MetadataExt;
@@ -626,8 +626,11 @@ impl Service {
         }
     }
 
-    fn retry(&self) -> (f64, f64) {
-        (self.config.retry_base_secs, self.config.retry_max_secs)
+    fn retry(&self) -> RetryPolicy {
+        RetryPolicy {
+            base_secs: self.config.retry_base_secs,
+            max_secs: self.config.retry_max_secs,
+        }
     }
 
     /// Records a job's end. While the database is busy (another process holds its write

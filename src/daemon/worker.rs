@@ -13,10 +13,11 @@
 use super::publish::{self, Published, SIDECAR_SUFFIX, STAGING_DIR};
 use super::scanset::StatSig;
 use super::supervise::{self, WorkerLimits, WorkerOutcome, WorkerRequest};
+use crate::process::output_stem;
 use crate::recipe::Recipe;
 use crate::report::Report;
 use crate::store::FailureKind;
-use crate::store::{ClaimedJob, Finish, Owner, StepRow, now_ms};
+use crate::store::{ClaimedJob, Finish, MeshSizes, OutputFile, Owner, StepRow, now_ms};
 use serde_json::json;
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
@@ -348,11 +349,11 @@ fn done(report: Report, final_dir: &Path) -> Finish {
         .iter()
         .map(|f| {
             let name = f.path.file_name().map(PathBuf::from).unwrap_or_default();
-            (
-                final_dir.join(name).to_string_lossy().into_owned(),
-                f.bytes,
-                f.sha256.clone(),
-            )
+            OutputFile {
+                path: final_dir.join(name).to_string_lossy().into_owned(),
+                bytes: f.bytes,
+                sha256: f.sha256.clone(),
+            }
         })
         .collect();
     let steps = report
@@ -379,27 +380,14 @@ fn done(report: Report, final_dir: &Path) -> Finish {
         preview,
         outputs,
         report_json: report_value.to_string(),
-        counts: [
-            report.input.counts.vertices as i64,
-            report.input.counts.faces as i64,
-            report.output.counts.vertices as i64,
-            report.output.counts.faces as i64,
-        ],
+        counts: MeshSizes {
+            in_vertices: report.input.counts.vertices as i64,
+            in_faces: report.input.counts.faces as i64,
+            out_vertices: report.output.counts.vertices as i64,
+            out_faces: report.output.counts.faces as i64,
+        },
         process_ms: report.total_ms,
         steps,
-    }
-}
-
-/// The output base name: the input's name without `.gz` and its mesh extension.
-pub fn output_stem(input: &Path) -> String {
-    let name = input
-        .file_name()
-        .map(crate::text::escape_os)
-        .unwrap_or_else(|| "scan".into());
-    let name = name.strip_suffix(".gz").unwrap_or(&name);
-    match name.rsplit_once('.') {
-        Some((stem, _)) if !stem.is_empty() => stem.to_string(),
-        _ => name.to_string(),
     }
 }
 

@@ -143,9 +143,9 @@ pub enum Finish {
         output_dir: String,
         /// The preview picture, if one was drawn.
         preview: Option<String>,
-        outputs: Vec<(String, u64, String)>,
+        outputs: Vec<OutputFile>,
         report_json: String,
-        counts: [i64; 4],
+        counts: MeshSizes,
         process_ms: f64,
         steps: Vec<StepRow>,
     },
@@ -157,6 +157,31 @@ pub enum Finish {
     },
     /// The run was stopped (shutdown, crash): back to queued, not counted as an attempt.
     Interrupted { reason: String },
+}
+
+/// A published output file, as `job_output` records it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputFile {
+    pub path: String,
+    pub bytes: u64,
+    pub sha256: String,
+}
+
+/// The mesh's size before and after processing, as the job row records it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MeshSizes {
+    pub in_vertices: i64,
+    pub in_faces: i64,
+    pub out_vertices: i64,
+    pub out_faces: i64,
+}
+
+/// How long a job that failed transiently waits before its next attempt: `base_secs`
+/// doubled after each attempt, at most `max_secs`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RetryPolicy {
+    pub base_secs: f64,
+    pub max_secs: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -528,7 +553,7 @@ impl Store {
         &mut self,
         job: &ClaimedJob,
         outcome: &Finish,
-        retry: (f64, f64),
+        retry: RetryPolicy,
         wall_ms: f64,
     ) -> Result<FinalState> {
         let now = now_ms();
@@ -556,10 +581,10 @@ impl Store {
                         job.id,
                         now,
                         output_dir,
-                        counts[0],
-                        counts[1],
-                        counts[2],
-                        counts[3],
+                        counts.in_vertices,
+                        counts.in_faces,
+                        counts.out_vertices,
+                        counts.out_faces,
                         process_ms,
                         report_json,
                         preview
@@ -568,10 +593,10 @@ impl Store {
                 .map_err(sq)?;
                 tx.execute("DELETE FROM job_output WHERE job_id=?1", [job.id])
                     .map_err(sq)?;
-                for (p, bytes, sha) in outputs {
+                for f in outputs {
                     tx.execute(
                         "INSERT OR REPLACE INTO job_output(job_id, path, bytes, sha256) VALUES (?1, ?2, ?3, ?4)",
-                        params![job.id, p, *bytes as i64, sha],
+                        params![job.id, f.path, f.bytes as i64, f.sha256],
                     )
                     .map_err(sq)?;
                 }
@@ -608,7 +633,7 @@ impl Store {
                 } else {
                     ("failed", 1, "retry", FinalState::RetryLater)
                 };
-                let run_after = now + backoff_ms(job.attempt, retry.0, retry.1);
+                let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
                 let message = cut(message, MAX_ERROR_BYTES);
                 tx.execute(
                     "UPDATE job SET state=?2, retryable=?3, run_after=?4, finished_at=?5, updated_at=?5,
