@@ -8,7 +8,9 @@
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
 use scanmill::ops::decimate::audit::audit;
-use scanmill::ops::decimate::{DecimateParams, Halves, Method, decimate, decimate_with_origin};
+use scanmill::ops::decimate::{
+    DecimateParams, Halves, Method, StopReason, decimate, decimate_with_origin,
+};
 use std::path::Path;
 
 const SCANS: &[&str] = &[
@@ -74,11 +76,11 @@ fn check_with(rel: &str, mesh: &Mesh, method: Method, target: usize, halves: Hal
     let n = out.triangles.len();
     if mesh.triangles.len() <= target {
         assert_eq!(n, mesh.triangles.len(), "{what}");
-    } else if r.stopped_by == "target" {
+    } else if r.stopped_by == StopReason::Target {
         assert!(n <= target && n + 4 >= target, "{what}: {n} faces");
     } else {
         // Only when every remaining collapse would break a guarantee; say which.
-        assert_eq!(r.stopped_by, "no-candidates", "{what}");
+        assert_eq!(r.stopped_by, StopReason::NoCandidates, "{what}");
         let refused = r.refused;
         assert!(
             refused.seam + refused.locked + refused.link + refused.flip > 0,
@@ -153,7 +155,7 @@ fn face_scans_reach_the_labs_target() {
             ..Default::default()
         };
         let (out, r) = decimate(&mesh, &p).unwrap();
-        assert_eq!(r.stopped_by, "target", "{rel}");
+        assert_eq!(r.stopped_by, StopReason::Target, "{rel}");
         assert!(out.triangles.len() <= 26_000 && out.triangles.len() >= 25_996);
     }
 }

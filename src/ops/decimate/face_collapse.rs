@@ -26,7 +26,7 @@ pub struct LoopStats {
     pub ill_conditioned: usize,
     /// Largest error (normalised units) of an applied collapse.
     pub max_error: f64,
-    pub stopped_by: &'static str,
+    pub stopped_by: super::StopReason,
     /// When the loop stopped short of the target: every candidate left (edges for edge
     /// collapse, triangles for face collapse), by the reason it is refused.
     pub blocked: Option<RefusedCounts>,
@@ -254,10 +254,10 @@ pub fn run<const M: usize>(
     let t1 = std::time::Instant::now();
     let cpu1 = super::cpu_seconds();
     let mut pops = 0usize;
-    stats.stopped_by = "target";
+    stats.stopped_by = super::StopReason::Target;
     while work.live > target {
         let Some((k, t)) = heap.pop() else {
-            stats.stopped_by = "no-candidates";
+            stats.stopped_by = super::StopReason::NoCandidates;
             break;
         };
         pops += 1;
@@ -293,8 +293,8 @@ pub fn run<const M: usize>(
             Err(cause) => stats.refused.count(cause),
         }
     }
-    if work.live > target && stats.stopped_by == "target" {
-        stats.stopped_by = "no-candidates";
+    if work.live > target && stats.stopped_by == super::StopReason::Target {
+        stats.stopped_by = super::StopReason::NoCandidates;
     }
     if work.live > target {
         stats.blocked = Some(census(work, op, max_error, &mut sc));

@@ -69,7 +69,6 @@ pub enum BoundaryMode {
     Free,
 }
 
-/// Order of the face-collapse heap.
 /// Whether edge collapse first decimates the two halves of the mesh on two cores
 /// ([`halves`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -85,6 +84,7 @@ pub enum Halves {
     Off,
 }
 
+/// Order of the collapse heap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Priority {
@@ -363,6 +363,19 @@ impl RefusedCounts {
     }
 }
 
+/// Why a decimation stopped (the report's `stopped_by`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StopReason {
+    /// The face target was reached.
+    #[default]
+    Target,
+    /// The next collapse would exceed `max_error`.
+    MaxError,
+    /// Every collapse left is refused (by a guard, or there is none).
+    NoCandidates,
+}
+
 /// The step's figures.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct DecimateReport {
@@ -374,8 +387,7 @@ pub struct DecimateReport {
     pub target_faces: Option<usize>,
     /// Largest collapse error reached, as a fraction of the bounding-box diagonal.
     pub error_reached: f64,
-    /// "target", "max-error" or "no-candidates".
-    pub stopped_by: String,
+    pub stopped_by: StopReason,
     pub collapses: usize,
     pub refused: RefusedCounts,
     /// When the target was not reached: every collapse still possible (edges for edge
@@ -537,10 +549,12 @@ fn run<const M: usize>(
             let classes = work.classes;
             let report = DecimateReport {
                 error_reached: stats.max_error * to_diag,
-                stopped_by: if stats.stopped_by == "no-candidates" && params.max_error.is_some() {
-                    "max-error".to_string()
+                stopped_by: if stats.stopped_by == StopReason::NoCandidates
+                    && params.max_error.is_some()
+                {
+                    StopReason::MaxError
                 } else {
-                    stats.stopped_by.to_string()
+                    stats.stopped_by
                 },
                 collapses: stats.collapses,
                 refused: stats.refused,
