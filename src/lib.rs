@@ -1,4 +1,5 @@
-//! scanmill: unattended processing of 3D scans. See DESIGN.md for the architecture.
+//! scanmill: unattended processing of 3D scans. The architecture (layout, data flow, the
+//! recipe-step contract, conventions) is in docs/architecture.md.
 
 pub mod compare;
 pub mod config;
