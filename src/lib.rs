@@ -4,6 +4,7 @@
 pub mod compare;
 pub mod config;
 pub mod daemon;
+pub mod geom;
 pub mod memory;
 pub mod mesh;
 pub mod metrics;

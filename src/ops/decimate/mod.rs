@@ -12,8 +12,8 @@
 
 pub mod audit;
 pub mod cluster;
+pub mod collapse_loop;
 pub mod edge_collapse;
-pub mod face_collapse;
 pub mod guards;
 pub mod halves;
 mod heap;
@@ -21,7 +21,8 @@ pub mod quadric;
 pub mod work;
 
 use crate::mesh::Mesh;
-use face_collapse::Operator;
+use collapse_loop::{CollapseOperator, FaceCollapse};
+use edge_collapse::EdgeCollapse;
 use quadric::Weights;
 use serde::{Deserialize, Serialize};
 use work::{Config, Work};
@@ -538,13 +539,17 @@ fn run<const M: usize>(
                 1.0
             };
             let max_error = params.max_error.map_or(f64::INFINITY, |e| e / to_diag);
-            let op = if params.method == Method::FaceCollapse {
-                Operator::Face
-            } else {
-                Operator::Edge
-            };
             let target = params.target_faces.unwrap_or(0);
-            let stats = face_collapse::run(&mut work, op, params.priority, target, max_error);
+            let (stats, what) = if params.method == Method::FaceCollapse {
+                let op = FaceCollapse {
+                    priority: params.priority,
+                };
+                let stats = collapse_loop::run(&mut work, &op, target, max_error);
+                (stats, FaceCollapse::NAME)
+            } else {
+                let stats = collapse_loop::run(&mut work, &EdgeCollapse, target, max_error);
+                (stats, EdgeCollapse::NAME)
+            };
             let (t2, c2) = (std::time::Instant::now(), cpu_seconds());
             let classes = work.classes;
             let report = DecimateReport {
@@ -559,11 +564,6 @@ fn run<const M: usize>(
                 collapses: stats.collapses,
                 refused: stats.refused,
                 stop_note: stats.blocked.map(|b| {
-                    let what = if op == Operator::Edge {
-                        "edge collapses"
-                    } else {
-                        "face collapses"
-                    };
                     let causes: Vec<String> = b
                         .ranked()
                         .iter()
@@ -601,20 +601,8 @@ fn run<const M: usize>(
     }
 }
 
-/// CPU time of the process (all threads) in seconds, for the phase timings in the debug log (the
-/// machine is shared, so wall time alone says little).
-pub(crate) fn cpu_seconds() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the call only writes it.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return 0.0;
-    }
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
+/// The process's CPU time, for the phase timings in the debug log.
+pub(crate) use crate::geom::timing::cpu_seconds;
 
 #[cfg(test)]
 mod tests;

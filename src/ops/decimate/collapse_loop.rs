@@ -1,20 +1,127 @@
-//! Algorithm f (spec/decimation.md §5.6): face collapse with the wedge-aware quadric, in
-//! the lazy framework (§2.4, thesis §1.3.3). The heap holds triangle indices; a triangle
-//! touched by a collapse is only marked stale, and re-costed when it reaches the top.
-//! The same loop drives edge collapse ([`super::edge_collapse`]): there a triangle's
+//! The collapse loop of both collapse operators, in the lazy framework (spec/decimation.md
+//! §2.4, thesis §1.3.3): the heap holds triangle indices; a triangle touched by a collapse
+//! is re-costed. What a triangle's candidate is and how it collapses is the operator's
+//! ([`CollapseOperator`]): [`FaceCollapse`], algorithm f (§5.6, face collapse with the
+//! wedge-aware quadric), or [`super::edge_collapse::EdgeCollapse`], where a triangle's
 //! candidate is the cheapest of its three sides.
 
-use super::edge_collapse;
 use super::heap::IndexedHeap;
 use super::work::{NIL, Plan, Scratch, Work};
 use super::{Priority, Refusal, RefusedCounts};
 use rayon::prelude::*;
 
-/// Which operator the loop applies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Operator {
-    Face,
-    Edge,
+/// A collapse operator the loop applies (the role of baby_shark's `CollapseStrategy`): what
+/// triangle `t`'s candidate is and what it costs, how it is collapsed, how the triangles
+/// around a collapse are re-costed, and which candidates are left when the loop stops.
+pub trait CollapseOperator: Sync {
+    /// What is collapsed, for the report's note when the loop stops short.
+    const NAME: &'static str;
+
+    /// The priority of triangle `t`'s candidate, or why it has none. An operator with more
+    /// than one candidate per triangle writes the one it chose (0..3) into `side`.
+    fn candidate<const M: usize>(
+        &self,
+        work: &Work<M>,
+        t: usize,
+        side: &mut u8,
+    ) -> Result<f64, Refusal>;
+
+    /// Tries to collapse triangle `t`'s candidate; on success the scratch holds the merge.
+    /// `best` is the candidate's side and cost as the heap holds them, when known.
+    fn attempt<const M: usize>(
+        &self,
+        work: &mut Work<M>,
+        t: usize,
+        best: Option<(usize, f64)>,
+        max_error: f64,
+        sc: &mut Scratch<M>,
+        stats: &mut LoopStats,
+    ) -> Result<Plan, Refusal>;
+
+    /// The priority of triangle `u`, whose corner `k` is the vertex a collapse left; `side`
+    /// as in [`CollapseOperator::candidate`], `memo` shared by the fan of one collapse.
+    #[allow(clippy::too_many_arguments)]
+    fn rekey<const M: usize>(
+        &self,
+        work: &Work<M>,
+        u: usize,
+        k: usize,
+        heap: &IndexedHeap,
+        side: &mut u8,
+        memo: &mut Vec<(u32, Result<f64, Refusal>)>,
+    ) -> Result<f64, Refusal>;
+
+    /// Calls `f` with the vertices of every candidate left, each once.
+    fn for_each_candidate<const M: usize>(&self, work: &Work<M>, f: &mut dyn FnMut(&[u32]));
+}
+
+/// Algorithm f (spec/decimation.md §5.6): a triangle collapses to one vertex.
+pub struct FaceCollapse {
+    pub priority: Priority,
+}
+
+impl CollapseOperator for FaceCollapse {
+    const NAME: &'static str = "face collapses";
+
+    fn candidate<const M: usize>(
+        &self,
+        work: &Work<M>,
+        t: usize,
+        _side: &mut u8,
+    ) -> Result<f64, Refusal> {
+        match self.priority {
+            Priority::Estimate => Ok(work.estimate(t)),
+            Priority::Quadric => work.quick_cost(&vertices(work, t)),
+        }
+    }
+
+    fn attempt<const M: usize>(
+        &self,
+        work: &mut Work<M>,
+        t: usize,
+        _best: Option<(usize, f64)>,
+        max_error: f64,
+        sc: &mut Scratch<M>,
+        stats: &mut LoopStats,
+    ) -> Result<Plan, Refusal> {
+        let s = vertices(work, t);
+        stats.evaluations += 1;
+        let plan = work.evaluate(&s, sc)?;
+        if plan.error > max_error {
+            return Err(Refusal::MaxError);
+        }
+        work.check(&plan, sc)?;
+        if plan.fallback {
+            stats.ill_conditioned += 1;
+        }
+        work.apply(&plan, sc);
+        Ok(plan)
+    }
+
+    fn rekey<const M: usize>(
+        &self,
+        work: &Work<M>,
+        u: usize,
+        _k: usize,
+        _heap: &IndexedHeap,
+        side: &mut u8,
+        _memo: &mut Vec<(u32, Result<f64, Refusal>)>,
+    ) -> Result<f64, Refusal> {
+        self.candidate(work, u, side)
+    }
+
+    fn for_each_candidate<const M: usize>(&self, work: &Work<M>, f: &mut dyn FnMut(&[u32])) {
+        for t in live_triangles(work) {
+            f(&work.tv[t]);
+        }
+    }
+}
+
+/// The triangles not yet collapsed.
+pub(super) fn live_triangles<'a, const M: usize>(
+    work: &'a Work<'_, M>,
+) -> impl Iterator<Item = usize> + 'a {
+    (0..work.tv.len()).filter(|&t| work.tv[t][0] != NIL)
 }
 
 /// What the loop did.
@@ -45,61 +152,11 @@ fn vertices<const M: usize>(work: &Work<M>, t: usize) -> [u32; 3] {
     work.tv[t]
 }
 
-/// The priority of triangle `t`'s candidate, or why it has none.
-fn candidate<const M: usize>(
-    work: &Work<M>,
-    op: Operator,
-    priority: Priority,
-    t: usize,
-) -> Result<f64, Refusal> {
-    match op {
-        Operator::Face => match priority {
-            Priority::Estimate => Ok(work.estimate(t)),
-            Priority::Quadric => work.quick_cost(&vertices(work, t)),
-        },
-        Operator::Edge => edge_collapse::best_side(work, t).map(|(_, cost)| cost),
-    }
-}
-
-/// Tries to collapse triangle `t`'s candidate; on success the scratch holds the merge.
-fn attempt<const M: usize>(
-    work: &mut Work<M>,
-    op: Operator,
-    t: usize,
-    best: Option<(usize, f64)>,
-    max_error: f64,
-    sc: &mut Scratch<M>,
-    stats: &mut LoopStats,
-) -> Result<Plan, Refusal> {
-    match op {
-        Operator::Face => {
-            let s = vertices(work, t);
-            stats.evaluations += 1;
-            let plan = work.evaluate(&s, sc)?;
-            if plan.error > max_error {
-                return Err(Refusal::MaxError);
-            }
-            work.check(&plan, sc)?;
-            if plan.fallback {
-                stats.ill_conditioned += 1;
-            }
-            work.apply(&plan, sc);
-            Ok(plan)
-        }
-        Operator::Edge => edge_collapse::attempt(work, t, best, max_error, sc, stats),
-    }
-}
-
 /// The priority of each triangle around the vertex a collapse left (the fan in
-/// `sc.corners`). For edge collapse each side at the new vertex is shared by two fan
-/// triangles, so its cost is computed once (`memo`); the side opposite the vertex did not
-/// change, and when it was the triangle's cheapest side (`argmin`) its cost is the
-/// triangle's current key, so only the other sides are recomputed.
-#[allow(clippy::too_many_arguments)]
-fn fan_candidates<const M: usize>(
+/// `sc.corners`), skipping those refused for good.
+fn fan_candidates<const M: usize, O: CollapseOperator>(
     work: &Work<M>,
-    op: Operator,
-    priority: Priority,
+    op: &O,
     sc: &Scratch<M>,
     heap: &IndexedHeap,
     aux: &mut [u8],
@@ -113,48 +170,20 @@ fn fan_candidates<const M: usize>(
         if aux[u] & FROZEN != 0 {
             continue;
         }
-        let r = match op {
-            Operator::Face => candidate(work, op, priority, u),
-            Operator::Edge => {
-                let vs = work.tv[u];
-                let n = vs[k];
-                let mut side = |x: u32| match memo.iter().find(|e| e.0 == x) {
-                    Some(e) => e.1,
-                    None => {
-                        let r = work.quick_cost(&[n, x]);
-                        memo.push((x, r));
-                        r
-                    }
-                };
-                // Sides in the triangle's own order: (v0,v1), (v1,v2), (v2,v0).
-                let opposite = (k + 1) % 3;
-                let mut costs = [Err(Refusal::Locked); 3];
-                costs[k] = side(vs[(k + 1) % 3]);
-                costs[(k + 2) % 3] = side(vs[(k + 2) % 3]);
-                costs[opposite] = match heap.key(u as u32) {
-                    Some(key) if aux[u] as usize == opposite => Ok(f64::from_bits(key)),
-                    _ => work.quick_cost(&[vs[opposite], vs[(opposite + 1) % 3]]),
-                };
-                edge_collapse::combine(costs).map(|(i, cost)| {
-                    aux[u] = i as u8;
-                    cost
-                })
-            }
-        };
+        let r = op.rekey(work, u, k, heap, &mut aux[u], memo);
         out.push((u as u32, r));
     }
 }
 
-/// Why each candidate left is refused, found by evaluating it in full: each edge once
-/// (edge collapse) or each triangle (face collapse). Runs only when the loop stopped short
-/// of its target, so that the report can say why.
-fn census<const M: usize>(
+/// Why each candidate left is refused, found by evaluating it in full. Runs only when the
+/// loop stopped short of its target, so that the report can say why.
+fn census<const M: usize, O: CollapseOperator>(
     work: &Work<M>,
-    op: Operator,
+    op: &O,
     max_error: f64,
     sc: &mut Scratch<M>,
 ) -> RefusedCounts {
-    let why = |s: &[u32], sc: &mut Scratch<M>| -> Option<Refusal> {
+    let mut why = |s: &[u32]| -> Option<Refusal> {
         if let Err(c) = work.quick_cost(s) {
             return Some(c);
         }
@@ -168,32 +197,11 @@ fn census<const M: usize>(
         work.check(&plan, sc).err()
     };
     let mut counts = RefusedCounts::default();
-    let live = (0..work.tv.len()).filter(|&t| work.tv[t][0] != NIL);
-    match op {
-        Operator::Face => {
-            for t in live {
-                if let Some(c) = why(&work.tv[t], sc) {
-                    counts.count(c);
-                }
-            }
+    op.for_each_candidate(work, &mut |s| {
+        if let Some(c) = why(s) {
+            counts.count(c);
         }
-        Operator::Edge => {
-            let mut edges: Vec<(u32, u32)> = live
-                .flat_map(|t| {
-                    let v = work.tv[t];
-                    [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])]
-                })
-                .map(|(a, b)| (a.min(b), a.max(b)))
-                .collect();
-            edges.sort_unstable();
-            edges.dedup();
-            for (a, b) in edges {
-                if let Some(c) = why(&[a, b], sc) {
-                    counts.count(c);
-                }
-            }
-        }
-    }
+    });
     counts
 }
 
@@ -205,10 +213,9 @@ fn census<const M: usize>(
 /// stale, re-cost them when they reach the top) is kept in effect but done at once: the
 /// triangles around a collapse are re-keyed in an indexed heap right after it, which is
 /// the same greedy order without the stale entries' extra heap traffic.
-pub fn run<const M: usize>(
+pub fn run<const M: usize, O: CollapseOperator>(
     work: &mut Work<M>,
-    op: Operator,
-    priority: Priority,
+    op: &O,
     target: usize,
     max_error: f64,
 ) -> LoopStats {
@@ -226,13 +233,7 @@ pub fn run<const M: usize>(
             .zip(aux.par_iter_mut())
             .enumerate()
             .for_each(|(t, (e, a))| {
-                let r = match op {
-                    Operator::Edge => edge_collapse::best_side(w, t).map(|(i, cost)| {
-                        *a = i as u8;
-                        cost
-                    }),
-                    Operator::Face => candidate(w, op, priority, t),
-                };
+                let r = op.candidate(w, t, a);
                 let k = match r {
                     Ok(k) => key(k),
                     // Refused because two fixed vertices would merge: that stays so until
@@ -262,19 +263,16 @@ pub fn run<const M: usize>(
         };
         pops += 1;
         let t = t as usize;
-        // Edge collapse: the cheapest side and its cost, as keyed (see `fan_candidates`).
-        let best = (op == Operator::Edge && aux[t] & !FROZEN < 3)
-            .then(|| ((aux[t] & !FROZEN) as usize, f64::from_bits(k)));
-        match attempt(work, op, t, best, max_error, &mut sc, &mut stats) {
+        // The candidate's side and its cost, as keyed, when the operator chose one.
+        let best = (aux[t] & !FROZEN < 3).then(|| ((aux[t] & !FROZEN) as usize, f64::from_bits(k)));
+        match op.attempt(work, t, best, max_error, &mut sc, &mut stats) {
             Ok(plan) => {
                 stats.collapses += 1;
                 stats.max_error = stats.max_error.max(plan.error);
                 for &d in &sc.dead {
                     heap.remove(d);
                 }
-                fan_candidates(
-                    work, op, priority, &sc, &heap, &mut aux, &mut memo, &mut fan,
-                );
+                fan_candidates(work, op, &sc, &heap, &mut aux, &mut memo, &mut fan);
                 stats.evaluations += fan.len();
                 for &(u, r) in &fan {
                     match r {
