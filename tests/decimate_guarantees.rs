@@ -5,13 +5,13 @@
 //! target reached within 4 faces unless every remaining collapse was refused (then the
 //! refusals are reported), and every output triangle knows its input triangle.
 
-use scanmill::mesh::io::load;
-use scanmill::mesh::{LoadOptions, Mesh};
+mod common;
+
+use scanmill::mesh::Mesh;
 use scanmill::ops::decimate::audit::audit;
 use scanmill::ops::decimate::{
     DecimateParams, Halves, Method, StopReason, decimate, decimate_with_origin,
 };
-use std::path::Path;
 
 const SCANS: &[&str] = &[
     "textured/james_face_stereo_capture/james.obj",
@@ -22,12 +22,7 @@ const SCANS: &[&str] = &[
     "textured/ict_facekit_neutral/generic_neutral_mesh.obj",
 ];
 
-fn scan(rel: &str) -> Mesh {
-    let path = Path::new("../shared/data").join(rel);
-    load(&path, &LoadOptions::default())
-        .unwrap_or_else(|e| panic!("{rel}: {e}"))
-        .0
-}
+use common::scan;
 
 fn check(rel: &str, mesh: &Mesh, method: Method, target: usize) {
     check_with(rel, mesh, method, target, Halves::Auto);
