@@ -53,24 +53,15 @@ fn face_400k() -> Option<Mesh> {
     Some(best)
 }
 
-/// CPU seconds (user + system) this process has used, from /proc (Linux; `None` elsewhere).
-fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
-    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0) // USER_HZ is 100 on Linux
-}
+use scanmill::geom::timing::cpu_seconds;
 
 /// Wall and CPU seconds of `f`, the median of `runs` runs by wall time.
 fn timed<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, f64) {
     let mut times: Vec<(f64, f64)> = (0..runs)
         .map(|_| {
-            let (cpu, wall) = (cpu_seconds().unwrap_or(0.0), std::time::Instant::now());
+            let (cpu, wall) = (cpu_seconds(), std::time::Instant::now());
             black_box(f());
-            (
-                wall.elapsed().as_secs_f64(),
-                cpu_seconds().unwrap_or(0.0) - cpu,
-            )
+            (wall.elapsed().as_secs_f64(), cpu_seconds() - cpu)
         })
         .collect();
     times.sort_by(|a, b| a.0.total_cmp(&b.0));

@@ -10,21 +10,7 @@ use scanmill::mesh::{LoadOptions, load};
 use scanmill::ops::smooth::{MethodName, SmoothParams, SmoothParamsFile, Smoother, Weights};
 use std::path::Path;
 
-fn cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let fields: Vec<&str> = stat
-        .rsplit_once(')')
-        .map(|(_, rest)| rest.split_whitespace().collect())
-        .unwrap_or_default();
-    let tick = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|f| f.parse::<f64>().ok())
-            .unwrap_or(0.0)
-    };
-    // Fields after the command: state is index 0, utime 11, stime 12 (clock ticks of 10 ms).
-    (tick(11) + tick(12)) / 100.0
-}
+use scanmill::geom::timing::cpu_seconds;
 
 fn main() {
     let mut args = std::env::args().skip(1);

@@ -432,8 +432,15 @@ mod tests {
     }
 
     #[test]
-    fn deterministic() {
-        let (a, b) = (table(), table());
+    fn deterministic_across_thread_counts() {
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(table)
+        };
+        let (a, b) = (on(1), on(3));
         let strip = |t: &CompareTable| {
             t.rows
                 .iter()

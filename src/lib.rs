@@ -1,8 +1,10 @@
-//! scanmill: unattended processing of 3D scans. See DESIGN.md for the architecture.
+//! scanmill: unattended processing of 3D scans. The architecture (layout, data flow, the
+//! recipe-step contract, conventions) is in docs/architecture.md.
 
 pub mod compare;
 pub mod config;
 pub mod daemon;
+pub mod geom;
 pub mod memory;
 pub mod mesh;
 pub mod metrics;

@@ -149,14 +149,9 @@ fn mesh_error_code(e: &MeshError) -> u8 {
     }
 }
 
-fn run_process(
-    input: &Path,
-    recipe_path: &Path,
-    out: &Path,
-    report: Option<&Path>,
-    texture: Option<&Path>,
-) -> Result<(), (u8, anyhow::Error)> {
-    let recipe = Recipe::from_path(recipe_path).map_err(|e| {
+/// The recipe at `path`; a missing file exits 66 (no input), any other problem 78 (config).
+fn load_recipe(path: &Path) -> Result<Recipe, (u8, anyhow::Error)> {
+    Recipe::from_path(path).map_err(|e| {
         let code = match &e {
             RecipeError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
                 exit::NO_INPUT
@@ -164,7 +159,17 @@ fn run_process(
             _ => exit::CONFIG_ERROR,
         };
         (code, e.into())
-    })?;
+    })
+}
+
+fn run_process(
+    input: &Path,
+    recipe_path: &Path,
+    out: &Path,
+    report: Option<&Path>,
+    texture: Option<&Path>,
+) -> Result<(), (u8, anyhow::Error)> {
+    let recipe = load_recipe(recipe_path)?;
     let progress = TerminalProgress::new();
     let result =
         process_scan_with_texture(input, texture, &recipe, Some(recipe_path), out, &progress);
@@ -254,15 +259,7 @@ fn run_compare(
         .map_err(|m| bad_argument(format!("--samples: {m}")))?;
     let mut recipes = Vec::with_capacity(recipe_paths.len());
     for path in recipe_paths {
-        let recipe = Recipe::from_path(path).map_err(|e| {
-            let code = match &e {
-                RecipeError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
-                    exit::NO_INPUT
-                }
-                _ => exit::CONFIG_ERROR,
-            };
-            (code, e.into())
-        })?;
+        let recipe = load_recipe(path)?;
         let name = path.file_name().map_or_else(
             || path.display().to_string(),
             |n| n.to_string_lossy().into_owned(),

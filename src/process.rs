@@ -68,11 +68,14 @@ impl ProcessError {
     }
 }
 
-/// The output file's base name: the input's name without `.gz` and its mesh extension.
+/// The output base name: the input's name without `.gz` and its mesh extension, escaped
+/// (control characters and bytes that are not UTF-8 written out, see
+/// [`crate::text::escape_os`]), so that no output name carries a control character. The CLI
+/// names its files with it and the daemon its staging folder.
 pub fn output_stem(input: &Path) -> String {
     let name = input
         .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
+        .map(crate::text::escape_os)
         .unwrap_or_else(|| "scan".into());
     let name = name.strip_suffix(".gz").unwrap_or(&name);
     match name.rsplit_once('.') {

@@ -5,7 +5,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
+mod common;
+
+use common::{DATA, scan_folder as scan};
 const RECIPE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/config/recipes/normals-only.toml"
@@ -157,18 +159,6 @@ fn a_recipe_without_decimate_keeps_the_vertex_order() {
     for (i, (a, b)) in before.positions.iter().zip(&after.positions).enumerate() {
         assert!(a.distance(*b) < 1e-6, "vertex {i}: {a} became {b}");
     }
-}
-
-/// Writes the named files into a fresh folder and returns (folder, the first file).
-fn scan(files: &[(&str, &[u8])]) -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    for (name, content) in files {
-        let path = dir.path().join(name);
-        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-        std::fs::write(path, content).unwrap();
-    }
-    let first = dir.path().join(files[0].0);
-    (dir, first)
 }
 
 const TRIANGLE_MTL: &[u8] = b"newmtl m\nmap_Kd tex.png\n";

@@ -5,11 +5,13 @@
 //! target reached within 4 faces unless every remaining collapse was refused (then the
 //! refusals are reported), and every output triangle knows its input triangle.
 
-use scanmill::mesh::io::load;
-use scanmill::mesh::{LoadOptions, Mesh};
+mod common;
+
+use scanmill::mesh::Mesh;
 use scanmill::ops::decimate::audit::audit;
-use scanmill::ops::decimate::{DecimateParams, Halves, Method, decimate, decimate_with_origin};
-use std::path::Path;
+use scanmill::ops::decimate::{
+    DecimateParams, Halves, Method, StopReason, decimate, decimate_with_origin,
+};
 
 const SCANS: &[&str] = &[
     "textured/james_face_stereo_capture/james.obj",
@@ -20,12 +22,7 @@ const SCANS: &[&str] = &[
     "textured/ict_facekit_neutral/generic_neutral_mesh.obj",
 ];
 
-fn scan(rel: &str) -> Mesh {
-    let path = Path::new("../shared/data").join(rel);
-    load(&path, &LoadOptions::default())
-        .unwrap_or_else(|e| panic!("{rel}: {e}"))
-        .0
-}
+use common::scan;
 
 fn check(rel: &str, mesh: &Mesh, method: Method, target: usize) {
     check_with(rel, mesh, method, target, Halves::Auto);
@@ -74,11 +71,11 @@ fn check_with(rel: &str, mesh: &Mesh, method: Method, target: usize, halves: Hal
     let n = out.triangles.len();
     if mesh.triangles.len() <= target {
         assert_eq!(n, mesh.triangles.len(), "{what}");
-    } else if r.stopped_by == "target" {
+    } else if r.stopped_by == StopReason::Target {
         assert!(n <= target && n + 4 >= target, "{what}: {n} faces");
     } else {
         // Only when every remaining collapse would break a guarantee; say which.
-        assert_eq!(r.stopped_by, "no-candidates", "{what}");
+        assert_eq!(r.stopped_by, StopReason::NoCandidates, "{what}");
         let refused = r.refused;
         assert!(
             refused.seam + refused.locked + refused.link + refused.flip > 0,
@@ -153,7 +150,7 @@ fn face_scans_reach_the_labs_target() {
             ..Default::default()
         };
         let (out, r) = decimate(&mesh, &p).unwrap();
-        assert_eq!(r.stopped_by, "target", "{rel}");
+        assert_eq!(r.stopped_by, StopReason::Target, "{rel}");
         assert!(out.triangles.len() <= 26_000 && out.triangles.len() >= 25_996);
     }
 }

@@ -8,8 +8,10 @@
 //! --nocapture`): the noise protocol on the four scans of the issue, against Taubin, with
 //! times; and the speed on a 200k-vertex scan.
 
+mod common;
+
 use glam::DVec3;
-use scanmill::mesh::{LoadOptions, Mesh, Topology, io};
+use scanmill::mesh::{Mesh, Topology};
 use scanmill::metrics::distance::surface_distance;
 use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
 use scanmill::metrics::volume;
@@ -18,14 +20,7 @@ use scanmill::ops::smooth::{SmoothParams, smooth};
 use scanmill::recipe::{Recipe, Step};
 use std::path::Path;
 
-const DATA: &str = "../shared/data";
-
-fn load(rel: &str) -> Mesh {
-    let path = Path::new(DATA).join(rel);
-    io::load(&path, &LoadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .0
-}
+use common::scan as load;
 
 /// Taubin λ|μ smoothing as spec/smoothing.md §5 describes it (the reference the issue
 /// compares with; the smoothing step is another branch's): `passes` umbrella passes,
@@ -309,21 +304,7 @@ fn load_average() -> String {
         .unwrap_or_default()
 }
 
-/// CPU seconds of this process so far (utime + stime, /proc/self/stat, 10 ms ticks).
-fn cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let fields: Vec<&str> = stat
-        .rsplit_once(')')
-        .map(|(_, rest)| rest.split_whitespace().collect())
-        .unwrap_or_default();
-    let tick = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|f| f.parse::<f64>().ok())
-            .unwrap_or(0.0)
-    };
-    (tick(11) + tick(12)) / 100.0
-}
+use scanmill::geom::timing::cpu_seconds;
 
 #[test]
 #[ignore = "figures: run with --release -- --ignored --nocapture"]

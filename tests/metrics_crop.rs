@@ -1,17 +1,16 @@
 //! Crop and metrics on the real scans: james (textured face, open borders, a UV seam) and
 //! the three GGG SfM photogrammetry meshes (many holes, non-manifold edges).
 
+mod common;
+
 use glam::DVec3;
-use scanmill::mesh::io::load;
-use scanmill::mesh::{LoadOptions, Mesh, Topology};
+use scanmill::mesh::{Mesh, Topology};
 use scanmill::metrics::{self, MetricsOptions, TextureDeviation};
 use scanmill::ops::crop::{CropMode, CropParams, crop};
 use scanmill::recipe::Recipe;
 use scanmill::recipe::runner::{NoProgress, run_recipe};
 use std::collections::HashSet;
 use std::path::Path;
-
-const DATA: &str = "../shared/data";
 
 const SCANS: [&str; 4] = [
     "textured/james_face_stereo_capture/james.obj",
@@ -20,11 +19,7 @@ const SCANS: [&str; 4] = [
     "raw_photogrammetry/ggg_sfm_blackVase_decimated.ply",
 ];
 
-fn scan(rel: &str) -> Mesh {
-    load(&Path::new(DATA).join(rel), &LoadOptions::default())
-        .unwrap_or_else(|e| panic!("{rel}: {e}"))
-        .0
-}
+use common::{DATA, scan};
 
 /// The middle of the bounding box: 15 % off each side in x and y, 5 % in z.
 fn middle_box(mesh: &Mesh) -> (DVec3, DVec3) {

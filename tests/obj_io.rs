@@ -1,16 +1,13 @@
 //! OBJ + MTL + texture input and output on the real scans in ../shared/data, round trips,
 //! tobj as an oracle for the parser, and every kind of bad input.
 
+mod common;
+
 use scanmill::mesh::obj;
 use scanmill::mesh::{LoadOptions, Location, Mesh, MeshError, load, save};
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel)
-}
+use common::{data, read_bytes, scan_folder as scan};
 
 fn no_texture_check() -> LoadOptions {
     LoadOptions {
@@ -106,19 +103,6 @@ const DATA_OBJS: &[(&str, usize, usize, usize, usize)] = &[
         0,
     ),
 ];
-
-fn read_bytes(path: &Path) -> Vec<u8> {
-    let raw = std::fs::read(path).unwrap();
-    if path.extension().is_some_and(|e| e == "gz") {
-        let mut out = Vec::new();
-        flate2::read::GzDecoder::new(&raw[..])
-            .read_to_end(&mut out)
-            .unwrap();
-        out
-    } else {
-        raw
-    }
-}
 
 #[test]
 fn every_data_obj_loads() {
@@ -355,18 +339,6 @@ fn gzip_and_plain_load_the_same() {
 // Synthetic files
 
 const TRI: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n";
-
-/// A scan folder with the given files; returns the folder and the OBJ path.
-fn scan(files: &[(&str, &[u8])]) -> (tempfile::TempDir, PathBuf) {
-    let dir = tempfile::tempdir().unwrap();
-    for (name, content) in files {
-        let p = dir.path().join(name);
-        std::fs::create_dir_all(p.parent().unwrap()).unwrap();
-        std::fs::write(p, content).unwrap();
-    }
-    let obj = dir.path().join(files[0].0);
-    (dir, obj)
-}
 
 fn png(w: u32, h: u32) -> Vec<u8> {
     let img = image::RgbImage::from_pixel(w, h, image::Rgb([200, 100, 50]));

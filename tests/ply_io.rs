@@ -5,28 +5,17 @@ use proptest::prelude::*;
 use scanmill::mesh::ply::{self, MISSING_TEXTURE_PREFIX, PlyEncoding};
 use scanmill::mesh::{Corner, LoadOptions, LoadReport, Material, Mesh, MeshBuilder, MeshError};
 use std::collections::HashMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
-const DATA: &str = "../shared/data";
+mod common;
+
+use common::{DATA, read_bytes as bytes_of};
+
 const ENCODINGS: [PlyEncoding; 3] = [
     PlyEncoding::Ascii,
     PlyEncoding::BinaryLittleEndian,
     PlyEncoding::BinaryBigEndian,
 ];
-
-fn bytes_of(path: &Path) -> Vec<u8> {
-    let raw = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    if path.extension().is_some_and(|e| e == "gz") {
-        let mut out = Vec::new();
-        flate2::read::GzDecoder::new(&raw[..])
-            .read_to_end(&mut out)
-            .unwrap();
-        out
-    } else {
-        raw
-    }
-}
 
 fn load(rel: &str) -> Result<(Mesh, LoadReport), MeshError> {
     let path = Path::new(DATA).join(rel);

@@ -4,7 +4,9 @@
 
 use std::process::Command;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
+mod common;
+
+use common::DATA;
 const RECIPE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config/recipes/face-scan.toml");
 
 #[test]

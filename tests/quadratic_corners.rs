@@ -3,11 +3,13 @@
 //! defeat them (tests/hostile_shapes). The tests count work (nodes visited, set-up steps),
 //! never time: the machine's speed drifts, the counts do not.
 
+mod common;
+
 mod hostile_shapes;
 
 use glam::DVec3;
 use hostile_shapes::{fan, fan_with_seams, soup, stacked};
-use scanmill::mesh::{LoadOptions, Mesh, load};
+use scanmill::mesh::Mesh;
 use scanmill::metrics::bvh::{BUDGET_PER_LEVEL, TriangleBvh};
 use scanmill::metrics::surface::{counterparts, sample_surface};
 use scanmill::metrics::topology::ReferenceTopology;
@@ -19,7 +21,6 @@ use scanmill::ops::decimate::{
 use std::path::Path;
 use std::process::Command;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
 const RECIPE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/config/recipes/face-scan.toml");
 
 /// What `queries` searches cost together on `mesh`'s index: nodes visited, searches cut
@@ -143,12 +144,7 @@ fn crack_probes_on_a_soup_are_near_linear() {
     );
 }
 
-fn load_scan(rel: &str) -> Mesh {
-    let path = Path::new(DATA).join(rel);
-    load(&path, &LoadOptions::default())
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .0
-}
+use common::scan as load_scan;
 
 /// On real scans the budget never bites, with room to spare: the metrics' searches of a
 /// decimated scan against its input, both ways, with their hints, all end proven, well

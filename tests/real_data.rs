@@ -14,7 +14,9 @@ use scanmill::mesh::ply::PlyEncoding;
 use scanmill::mesh::{LoadOptions, Mesh, MeshError, SaveOptions, Topology, load, save};
 use std::path::{Path, PathBuf};
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
+mod common;
+
+use common::DATA;
 
 /// (file, vertices, triangles, texture seam edges, boundary edges, boundary loops,
 ///  components, non-manifold edges)

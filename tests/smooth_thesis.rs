@@ -6,25 +6,16 @@
 //! table (bunny, lucy, igea, facefuns) with the MeshLab reference figures is `#[ignore]`d
 //! (about a minute on two cores): `cargo test --test smooth_thesis -- --ignored --nocapture`.
 
+mod common;
+
 use scanmill::compare::{CompareOptions, CompareTable, NamedRecipe, run_on_mesh};
-use scanmill::mesh::{LoadOptions, Mesh, load};
+use scanmill::mesh::Mesh;
 use scanmill::metrics::MetricsOptions;
 use scanmill::metrics::noise::NoiseOptions;
 use scanmill::recipe::Recipe;
 use std::path::Path;
 
-const DATA: &str = "../shared/data";
-
-fn load_scan(relative: &str) -> Mesh {
-    let path = Path::new(DATA).join(relative);
-    let options = LoadOptions {
-        check_textures: false,
-        ..Default::default()
-    };
-    load(&path, &options)
-        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-        .0
-}
+use common::scan_untextured as load_scan;
 
 fn recipe(name: &str, step: &str) -> NamedRecipe {
     NamedRecipe {

@@ -17,6 +17,7 @@
 //! pipe that closes without one, is a protocol failure of that job, never of the daemon.
 
 use crate::report::Report;
+use crate::store::FailureKind;
 use serde::{Deserialize, Serialize};
 
 /// Bumped whenever an event's shape changes; the daemon refuses other versions.
@@ -47,7 +48,7 @@ pub enum Event {
         busy_ms: f64,
     },
     Failed {
-        kind: String,
+        kind: FailureKind,
         message: String,
         transient: bool,
     },
@@ -90,7 +91,7 @@ mod tests {
     #[test]
     fn failed_round_trips() {
         let line = Line::new(Event::Failed {
-            kind: "input".into(),
+            kind: FailureKind::Input,
             message: "line 3: bad\nindex".into(),
             transient: false,
         });
@@ -102,7 +103,7 @@ mod tests {
                 message,
                 transient,
             } => {
-                assert_eq!(kind, "input");
+                assert_eq!(kind, FailureKind::Input);
                 assert_eq!(message, "line 3: bad\nindex");
                 assert!(!transient);
             }

@@ -19,7 +19,8 @@ use super::worker::{self, JobResult, JobSpec, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
 use crate::store::{
-    ClaimedJob, Enqueued, FinalState, Finish, NewJob, Owner, Store, StoreError, now_ms,
+    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, NewJob, Owner, RetryPolicy, Store,
+    StoreError, now_ms,
 };
 use std::collections::HashMap;
 use std::os::unix::fs::MetadataExt;
@@ -594,7 +595,7 @@ impl Service {
                     Ok(r) => (Arc::new(r), PathBuf::from(&job.recipe_path)),
                     Err(e) => {
                         let f = Finish::Failed {
-                            kind: "recipe".into(),
+                            kind: FailureKind::Recipe,
                             message: e.to_string(),
                             transient: false,
                         };
@@ -626,7 +627,7 @@ impl Service {
                 });
             if let Err(e) = spawned {
                 let f = Finish::Failed {
-                    kind: "spawn".into(),
+                    kind: FailureKind::Spawn,
                     message: e.to_string(),
                     transient: true,
                 };
@@ -662,8 +663,11 @@ impl Service {
         }
     }
 
-    fn retry(&self) -> (f64, f64) {
-        (self.config.retry_base_secs, self.config.retry_max_secs)
+    fn retry(&self) -> RetryPolicy {
+        RetryPolicy {
+            base_secs: self.config.retry_base_secs,
+            max_secs: self.config.retry_max_secs,
+        }
     }
 
     /// Records a job's end. While the database is busy (another process holds its write
@@ -752,7 +756,7 @@ impl Service {
             let r = &self.running[&id];
             self.work_maybe = true;
             let f = Finish::Failed {
-                kind: "timeout".into(),
+                kind: FailureKind::Timeout,
                 message: format!(
                     "its supervisor did not finish within job_timeout_secs = {} plus {} s (stuck writing or publishing?); abandoned, it cannot publish",
                     self.config.job_timeout_secs,

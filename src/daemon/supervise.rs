@@ -18,6 +18,7 @@ use super::protocol::{self, Event, Line};
 use super::worker::PublishGate;
 use crate::mesh::InputLimits;
 use crate::report::Report;
+use crate::store::FailureKind;
 use std::collections::VecDeque;
 use std::ffi::OsString;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -55,17 +56,17 @@ pub struct WorkerLimits {
 /// Why a job failed, and whether trying again could help.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ProcessFailure {
-    pub kind: String,
+    pub kind: FailureKind,
     pub message: String,
     pub transient: bool,
 }
 
 impl ProcessFailure {
-    fn worker(kind: &str, message: String) -> ProcessFailure {
+    fn worker(kind: FailureKind, message: String) -> ProcessFailure {
         // A worker that dies is retried: a second attempt may find more memory or a quieter
         // machine, and a file that kills it every time is quarantined after max_attempts.
         ProcessFailure {
-            kind: kind.into(),
+            kind,
             message,
             transient: true,
         }
@@ -121,7 +122,7 @@ pub fn run(
         Ok(e) => e,
         Err(e) => {
             return WorkerOutcome::Failed(ProcessFailure::worker(
-                "spawn",
+                FailureKind::Spawn,
                 format!("cannot start the worker process: {e}"),
             ));
         }
@@ -475,7 +476,7 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
         Some(KillReason::Abandoned) => return WorkerOutcome::Abandoned,
         Some(KillReason::Deadline) => {
             return WorkerOutcome::Failed(ProcessFailure::worker(
-                "timeout",
+                FailureKind::Timeout,
                 format!(
                     "ran longer than job_timeout_secs = {}: worker killed {after}",
                     limits.wall.as_secs_f64()
@@ -486,7 +487,7 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
     }
     if let Some(e) = ended.protocol_error {
         return WorkerOutcome::Failed(ProcessFailure::worker(
-            "worker_protocol",
+            FailureKind::WorkerProtocol,
             format!("worker broke the protocol ({e}); killed {after}"),
         ));
     }
@@ -500,7 +501,7 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
             .any(|l| l.contains("memory allocation of"));
         let (kind, why) = if out_of_memory {
             (
-                "out_of_memory",
+                FailureKind::OutOfMemory,
                 format!(
                     " (out of memory: job_memory_mb = {})",
                     limits.memory_bytes >> 20
@@ -510,16 +511,16 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
             || (sig == libc::SIGKILL && cpu_secs >= limits.cpu_secs as f64)
         {
             (
-                "cpu_limit",
+                FailureKind::CpuLimit,
                 format!(" (CPU time limit: job_cpu_secs = {})", limits.cpu_secs),
             )
         } else if sig == libc::SIGKILL {
             (
-                "worker_killed",
+                FailureKind::WorkerKilled,
                 " (not by scanmill: the kernel's out-of-memory killer or an operator)".into(),
             )
         } else {
-            ("worker_crashed", String::new())
+            (FailureKind::WorkerCrashed, String::new())
         };
         return WorkerOutcome::Failed(ProcessFailure::worker(
             kind,
@@ -545,7 +546,7 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
             transient,
         }),
         _ => WorkerOutcome::Failed(ProcessFailure::worker(
-            "worker_crashed",
+            FailureKind::WorkerCrashed,
             format!("worker exited with status {code} without a result {after}{last_words}"),
         )),
     }
@@ -591,7 +592,7 @@ mod tests {
             ),
             &LIMITS,
         ));
-        assert_eq!(f.kind, "out_of_memory");
+        assert_eq!(f.kind, FailureKind::OutOfMemory);
         assert!(f.transient);
         assert!(f.message.contains("signal 6 (SIGABRT)"), "{}", f.message);
         assert!(f.message.contains("job_memory_mb = 2048"), "{}", f.message);
@@ -601,10 +602,10 @@ mod tests {
     #[test]
     fn a_segfault_is_a_crash_and_an_exit_without_result_too() {
         let f = failure(interpret(ended(libc::SIGSEGV, &[]), &LIMITS));
-        assert_eq!(f.kind, "worker_crashed");
+        assert_eq!(f.kind, FailureKind::WorkerCrashed);
         assert!(f.message.contains("signal 11 (SIGSEGV)"), "{}", f.message);
         let f = failure(interpret(ended(101 << 8, &["boom\x1b[31m"]), &LIMITS));
-        assert_eq!(f.kind, "worker_crashed");
+        assert_eq!(f.kind, FailureKind::WorkerCrashed);
         assert!(f.message.contains("status 101"), "{}", f.message);
         assert!(!f.message.contains('\x1b'), "escaped: {}", f.message);
     }
@@ -613,7 +614,7 @@ mod tests {
     fn a_deadline_kill_is_a_timeout_and_an_abandon_is_not_a_failure() {
         let mut e = ended(libc::SIGKILL, &[]);
         e.killed = Some(KillReason::Deadline);
-        assert_eq!(failure(interpret(e, &LIMITS)).kind, "timeout");
+        assert_eq!(failure(interpret(e, &LIMITS)).kind, FailureKind::Timeout);
         let mut e = ended(libc::SIGKILL, &[]);
         e.killed = Some(KillReason::Abandoned);
         assert!(matches!(interpret(e, &LIMITS), WorkerOutcome::Abandoned));
@@ -623,7 +624,7 @@ mod tests {
     fn the_workers_own_failure_is_passed_on_unchanged() {
         let mut e = ended(0, &[]);
         e.final_event = Some(Event::Failed {
-            kind: "input".into(),
+            kind: FailureKind::Input,
             message: "line 3: bad".into(),
             transient: false,
         });
@@ -631,7 +632,7 @@ mod tests {
         assert_eq!(
             f,
             ProcessFailure {
-                kind: "input".into(),
+                kind: FailureKind::Input,
                 message: "line 3: bad".into(),
                 transient: false
             }

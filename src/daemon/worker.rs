@@ -13,8 +13,11 @@
 use super::publish::{self, Published, SIDECAR_SUFFIX, STAGING_DIR};
 use super::scanset::StatSig;
 use super::supervise::{self, WorkerLimits, WorkerOutcome, WorkerRequest};
+use crate::process::output_stem;
 use crate::recipe::Recipe;
-use crate::store::{ClaimedJob, Finish, Owner, StepRow, now_ms};
+use crate::report::Report;
+use crate::store::FailureKind;
+use crate::store::{ClaimedJob, Finish, MeshSizes, OutputFile, Owner, StepRow, now_ms};
 use serde_json::json;
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
@@ -73,9 +76,9 @@ pub enum JobResult {
     Abandoned,
 }
 
-fn failure(kind: &str, message: impl Into<String>, transient: bool) -> Finish {
+fn failure(kind: FailureKind, message: impl Into<String>, transient: bool) -> Finish {
     Finish::Failed {
-        kind: kind.into(),
+        kind,
         message: message.into(),
         transient,
     }
@@ -110,7 +113,11 @@ pub fn run(spec: JobSpec) -> JobResult {
             let message = panic_message(panic.as_ref());
             tracing::error!("job panicked: {message}");
             JobResult::Finished {
-                finish: failure("panic", format!("internal error (panic): {message}"), false),
+                finish: failure(
+                    FailureKind::Panic,
+                    format!("internal error (panic): {message}"),
+                    false,
+                ),
                 wall_ms,
             }
         }
@@ -126,7 +133,7 @@ fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
             Ok(s) if s.size == m.size && s.mtime_ns == m.mtime_ns && s.ino == m.ino => {}
             Ok(_) => {
                 return Err(boxed_failure(
-                    "input_changed",
+                    FailureKind::InputChanged,
                     format!(
                         "{} changed after it was queued; the new version is a new job",
                         crate::text::escape_path(&path)
@@ -136,7 +143,7 @@ fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
             }
             Err(e) => {
                 return Err(boxed_failure(
-                    "input_vanished",
+                    FailureKind::InputVanished,
                     format!("{}: {e}", crate::text::escape_path(&path)),
                     false,
                 ));
@@ -146,11 +153,62 @@ fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
     Ok(())
 }
 
+/// Why a job stopped before its end: a failure to record, or the gate closed.
+enum Halt {
+    Failed(Box<Finish>),
+    Abandoned,
+}
+
+impl From<Box<Finish>> for Halt {
+    fn from(f: Box<Finish>) -> Halt {
+        Halt::Failed(f)
+    }
+}
+
+fn halt(kind: FailureKind, message: impl Into<String>, transient: bool) -> Halt {
+    Halt::Failed(boxed_failure(kind, message, transient))
+}
+
+/// The job's phases in order; `None` when it was abandoned.
 fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
+    let phases = || -> Result<Finish, Halt> {
+        preflight(spec)?;
+        let job = &spec.job;
+        let primary = Path::new(&job.root).join(&job.rel_path);
+        let stem = output_stem(&primary);
+        let scan_dir = staging.join(&stem);
+        std::fs::create_dir_all(&scan_dir).map_err(|e| {
+            halt(
+                FailureKind::Output,
+                format!("{}: {e}", scan_dir.display()),
+                true,
+            )
+        })?;
+        let started_ms = now_ms();
+        let report = process_in_worker(spec, primary, &scan_dir)?;
+        check_inputs(job)?;
+        write_sidecar(spec, &report, &scan_dir, &stem, started_ms)?;
+        let final_dir = publish(spec, &scan_dir, &stem)?;
+        tracing::info!(output = %final_dir.display(), ms = report.total_ms, "published");
+        Ok(done(
+            report.with_output_folder(&scan_dir, &final_dir),
+            &final_dir,
+        ))
+    };
+    match phases() {
+        Ok(finish) => Some(finish),
+        Err(Halt::Failed(f)) => Some(*f),
+        Err(Halt::Abandoned) => None,
+    }
+}
+
+/// What is checked before the worker starts: the recipe and the inputs are still the ones
+/// queued, and the input set is within `max_input_bytes`.
+fn preflight(spec: &JobSpec) -> Result<(), Halt> {
     let job = &spec.job;
     if spec.recipe.hash() != job.recipe_hash {
-        return Some(failure(
-            "recipe_changed",
+        return Err(halt(
+            FailureKind::RecipeChanged,
             format!(
                 "{} changed since this job was queued; the scan is queued again under the new recipe",
                 spec.recipe_path.display()
@@ -158,13 +216,11 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
             false,
         ));
     }
-    if let Err(f) = check_inputs(job) {
-        return Some(*f);
-    }
+    check_inputs(job)?;
     let total: u64 = job.inputs.iter().map(|m| m.size).sum();
     if total > spec.max_input_bytes {
-        return Some(failure(
-            "too_large",
+        return Err(halt(
+            FailureKind::TooLarge,
             format!(
                 "input set is {total} bytes, above max_input_bytes = {}",
                 spec.max_input_bytes
@@ -172,30 +228,25 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
             false,
         ));
     }
-    let primary = Path::new(&job.root).join(&job.rel_path);
-    let stem = output_stem(&primary);
-    let scan_dir = staging.join(&stem);
-    if let Err(e) = std::fs::create_dir_all(&scan_dir) {
-        return Some(failure(
-            "output",
-            format!("{}: {e}", scan_dir.display()),
-            true,
-        ));
-    }
-    let started_ms = now_ms();
+    Ok(())
+}
+
+/// Runs the recipe on `primary` in a worker process, into `scan_dir`.
+fn process_in_worker(spec: &JobSpec, primary: PathBuf, scan_dir: &Path) -> Result<Report, Halt> {
+    let job = &spec.job;
     let request = WorkerRequest {
         job_id: job.id,
-        input: primary.clone(),
+        input: primary,
         recipe: spec.recipe_path.clone(),
         recipe_hash: job.recipe_hash.clone(),
-        out: scan_dir.clone(),
+        out: scan_dir.to_path_buf(),
         limits: spec.limits,
         input_limits: spec.input_limits.clone(),
     };
     let mut on_stage = |index: usize, total: usize, name: &str| {
         tracing::debug!(job_id = job.id, index, total, stage = name, "stage");
     };
-    let report = match supervise::run(&request, &spec.gate, &mut on_stage) {
+    match supervise::run(&request, &spec.gate, &mut on_stage) {
         WorkerOutcome::Done {
             report,
             isolation_ms,
@@ -205,29 +256,31 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
                 process_ms = report.total_ms,
                 "worker finished"
             );
-            *report
+            Ok(*report)
         }
         WorkerOutcome::Abandoned => {
             tracing::warn!("abandoned while running; worker killed");
-            return None;
+            Err(Halt::Abandoned)
         }
         WorkerOutcome::Failed(f) => {
             // An input that vanished or changed while being read is not the scan's fault.
-            if let Err(changed) = check_inputs(job) {
-                return Some(*changed);
-            }
-            return Some(Finish::Failed {
-                kind: f.kind,
-                message: f.message,
-                transient: f.transient,
-            });
+            check_inputs(job)?;
+            Err(halt(f.kind, f.message, f.transient))
         }
-    };
-    if let Err(changed) = check_inputs(job) {
-        return Some(*changed);
     }
+}
+
+/// Writes the provenance sidecar beside the files and syncs the folder.
+fn write_sidecar(
+    spec: &JobSpec,
+    report: &Report,
+    scan_dir: &Path,
+    stem: &str,
+    started_ms: i64,
+) -> Result<(), Halt> {
+    let job = &spec.job;
     // The sidecar sits beside the files: its paths are relative to its folder.
-    let sidecar_report = report.with_output_folder(&scan_dir, Path::new(""));
+    let sidecar_report = report.with_output_folder(scan_dir, Path::new(""));
     let sidecar = json!({
         "job_id": job.id,
         "job_key": job.job_key,
@@ -248,47 +301,47 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         "report": serde_json::to_value(&sidecar_report).unwrap_or_default(),
     });
     let sidecar_path = scan_dir.join(format!("{stem}{SIDECAR_SUFFIX}"));
-    let written = serde_json::to_vec_pretty(&sidecar)
+    serde_json::to_vec_pretty(&sidecar)
         .map_err(std::io::Error::other)
         .and_then(|bytes| std::fs::write(&sidecar_path, bytes))
-        .and_then(|_| publish::sync_tree(&scan_dir));
-    if let Err(e) = written {
-        return Some(failure(
-            "output",
-            format!("{}: {e}", scan_dir.display()),
-            true,
-        ));
-    }
+        .and_then(|_| publish::sync_tree(scan_dir))
+        .map_err(|e| {
+            halt(
+                FailureKind::Output,
+                format!("{}: {e}", scan_dir.display()),
+                true,
+            )
+        })
+}
+
+/// Publishes the staged folder, unless the job was abandoned; the folder it went to.
+fn publish(spec: &JobSpec, scan_dir: &Path, stem: &str) -> Result<PathBuf, Halt> {
+    let job = &spec.job;
     if !spec.gate.begin_publish() {
         tracing::warn!("abandoned before publishing; result discarded");
-        return None;
+        return Err(Halt::Abandoned);
     }
     // The output folder is named from the escaped form: never a control character in it.
-    let dest = publish::destination(
-        Path::new(&job.output_root),
-        &job.rel_path.to_string(),
-        &stem,
-    );
-    let final_dir =
-        match publish::publish_dir(&scan_dir, &dest, &stem, &job.job_key, job.generation) {
-            Ok(Published::New(d)) => d,
-            Ok(Published::AlreadyThere(d)) => {
-                tracing::info!(
-                    "{} already holds this job's result (published before a restart)",
-                    d.display()
-                );
-                d
-            }
-            Err(e) => {
-                return Some(failure(
-                    "output",
-                    format!("publish to {}: {e}", dest.display()),
-                    true,
-                ));
-            }
-        };
-    tracing::info!(output = %final_dir.display(), ms = report.total_ms, "published");
-    let report = report.with_output_folder(&scan_dir, &final_dir);
+    let dest = publish::destination(Path::new(&job.output_root), &job.rel_path.to_string(), stem);
+    match publish::publish_dir(scan_dir, &dest, stem, &job.job_key, job.generation) {
+        Ok(Published::New(d)) => Ok(d),
+        Ok(Published::AlreadyThere(d)) => {
+            tracing::info!(
+                "{} already holds this job's result (published before a restart)",
+                d.display()
+            );
+            Ok(d)
+        }
+        Err(e) => Err(halt(
+            FailureKind::Output,
+            format!("publish to {}: {e}", dest.display()),
+            true,
+        )),
+    }
+}
+
+/// What the store records of a published job.
+fn done(report: Report, final_dir: &Path) -> Finish {
     let report_value = serde_json::to_value(&report).unwrap_or_default();
     let outputs = report
         .output
@@ -296,11 +349,11 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         .iter()
         .map(|f| {
             let name = f.path.file_name().map(PathBuf::from).unwrap_or_default();
-            (
-                final_dir.join(name).to_string_lossy().into_owned(),
-                f.bytes,
-                f.sha256.clone(),
-            )
+            OutputFile {
+                path: final_dir.join(name).to_string_lossy().into_owned(),
+                bytes: f.bytes,
+                sha256: f.sha256.clone(),
+            }
         })
         .collect();
     let steps = report
@@ -322,32 +375,19 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         .as_ref()
         .and_then(|p| p.file.path.file_name())
         .map(|name| final_dir.join(name).to_string_lossy().into_owned());
-    Some(Finish::Done {
+    Finish::Done {
         output_dir: final_dir.to_string_lossy().into_owned(),
         preview,
         outputs,
         report_json: report_value.to_string(),
-        counts: [
-            report.input.counts.vertices as i64,
-            report.input.counts.faces as i64,
-            report.output.counts.vertices as i64,
-            report.output.counts.faces as i64,
-        ],
+        counts: MeshSizes {
+            in_vertices: report.input.counts.vertices as i64,
+            in_faces: report.input.counts.faces as i64,
+            out_vertices: report.output.counts.vertices as i64,
+            out_faces: report.output.counts.faces as i64,
+        },
         process_ms: report.total_ms,
         steps,
-    })
-}
-
-/// The output base name: the input's name without `.gz` and its mesh extension.
-pub fn output_stem(input: &Path) -> String {
-    let name = input
-        .file_name()
-        .map(crate::text::escape_os)
-        .unwrap_or_else(|| "scan".into());
-    let name = name.strip_suffix(".gz").unwrap_or(&name);
-    match name.rsplit_once('.') {
-        Some((stem, _)) if !stem.is_empty() => stem.to_string(),
-        _ => name.to_string(),
     }
 }
 
@@ -360,6 +400,6 @@ pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
         .unwrap_or_else(|| "unknown panic".into())
 }
 
-fn boxed_failure(kind: &str, message: impl Into<String>, transient: bool) -> Box<Finish> {
+fn boxed_failure(kind: FailureKind, message: impl Into<String>, transient: bool) -> Box<Finish> {
     Box::new(failure(kind, message, transient))
 }

@@ -12,6 +12,7 @@ use crate::config::load_recipe;
 use crate::mesh::InputLimits;
 use crate::process::{ProcessError, ProcessOptions, process_scan_with_options};
 use crate::recipe::runner::Progress;
+use crate::store::FailureKind;
 use std::io::Write;
 use std::panic::AssertUnwindSafe;
 use std::path::PathBuf;
@@ -119,12 +120,12 @@ fn emit(event: Event) {
 /// The failure kind and whether another attempt could help, for a processing error.
 pub fn failure_of(e: &ProcessError) -> Event {
     let kind = match e {
-        ProcessError::Input(_) => "input",
-        ProcessError::Step { .. } => "step",
-        ProcessError::Output { .. } => "output",
+        ProcessError::Input(_) => FailureKind::Input,
+        ProcessError::Step { .. } => FailureKind::Step,
+        ProcessError::Output { .. } => FailureKind::Output,
     };
     Event::Failed {
-        kind: kind.into(),
+        kind,
         message: e.to_string(),
         transient: e.is_transient(),
     }
@@ -144,7 +145,7 @@ pub fn run(args: WorkerArgs) -> u8 {
             let message = panic_message(panic.as_ref());
             tracing::error!("job panicked: {message}");
             Event::Failed {
-                kind: "panic".into(),
+                kind: FailureKind::Panic,
                 message: format!("internal error (panic): {message}"),
                 transient: false,
             }
@@ -158,7 +159,7 @@ fn run_job(args: &WorkerArgs, start: std::time::Instant) -> Event {
         Ok(r) => r,
         Err(e) => {
             return Event::Failed {
-                kind: "recipe".into(),
+                kind: FailureKind::Recipe,
                 message: e.to_string(),
                 transient: false,
             };
@@ -166,7 +167,7 @@ fn run_job(args: &WorkerArgs, start: std::time::Instant) -> Event {
     };
     if recipe.hash() != args.recipe_hash {
         return Event::Failed {
-            kind: "recipe_changed".into(),
+            kind: FailureKind::RecipeChanged,
             message: format!(
                 "{} changed since this job was queued; the scan is queued again under the new recipe",
                 args.recipe.display()

@@ -10,6 +10,7 @@ pub mod bvh;
 pub mod distance;
 pub mod noise;
 pub mod normals;
+pub mod schedule;
 pub mod surface;
 pub mod texture;
 pub mod topology;

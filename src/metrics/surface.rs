@@ -1,5 +1,5 @@
 //! What every two-mesh metric needs: seeded area-uniform samples on a surface, and exact
-//! closest-point queries on the other surface through a BVH (parry3d-f64's `TriMesh`).
+//! closest-point queries on the other surface through a BVH (`super::bvh::TriangleBvh`).
 
 use super::MetricsError;
 use super::bvh::{Search, TriangleBvh};

@@ -3,6 +3,7 @@
 //! file, the line and the valid choices (serde + toml give us that for free).
 
 pub mod runner;
+pub mod step;
 
 use crate::metrics::MetricsOptions;
 use crate::ops::crop::CropParams;

@@ -5,10 +5,12 @@
 //! IMMEDIATE`, so that a reader turned writer can never fail on a stale snapshot. The
 //! daemon owns one connection; the command line opens its own, short-lived ones.
 
+mod failure;
 pub mod query;
 pub mod relpath;
 pub mod schema;
 
+pub use failure::FailureKind;
 pub use relpath::RelPath;
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
@@ -141,20 +143,45 @@ pub enum Finish {
         output_dir: String,
         /// The preview picture, if one was drawn.
         preview: Option<String>,
-        outputs: Vec<(String, u64, String)>,
+        outputs: Vec<OutputFile>,
         report_json: String,
-        counts: [i64; 4],
+        counts: MeshSizes,
         process_ms: f64,
         steps: Vec<StepRow>,
     },
     /// Failed; retried later if `transient` and attempts remain.
     Failed {
-        kind: String,
+        kind: FailureKind,
         message: String,
         transient: bool,
     },
     /// The run was stopped (shutdown, crash): back to queued, not counted as an attempt.
     Interrupted { reason: String },
+}
+
+/// A published output file, as `job_output` records it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputFile {
+    pub path: String,
+    pub bytes: u64,
+    pub sha256: String,
+}
+
+/// The mesh's size before and after processing, as the job row records it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MeshSizes {
+    pub in_vertices: i64,
+    pub in_faces: i64,
+    pub out_vertices: i64,
+    pub out_faces: i64,
+}
+
+/// How long a job that failed transiently waits before its next attempt: `base_secs`
+/// doubled after each attempt, at most `max_secs`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RetryPolicy {
+    pub base_secs: f64,
+    pub max_secs: f64,
 }
 
 #[derive(Debug, Clone)]
@@ -393,7 +420,10 @@ impl Store {
         let result = match existing {
             Some((id, state, kind))
                 if state == "failed"
-                    && matches!(kind.as_deref(), Some("input_vanished" | "input_changed")) =>
+                    && kind
+                        .as_deref()
+                        .and_then(FailureKind::from_name)
+                        .is_some_and(FailureKind::is_input_gone) =>
             {
                 // The input is back, complete and quiet: point the job at where it is now.
                 tx.execute(
@@ -523,7 +553,7 @@ impl Store {
         &mut self,
         job: &ClaimedJob,
         outcome: &Finish,
-        retry: (f64, f64),
+        retry: RetryPolicy,
         wall_ms: f64,
     ) -> Result<FinalState> {
         let now = now_ms();
@@ -551,10 +581,10 @@ impl Store {
                         job.id,
                         now,
                         output_dir,
-                        counts[0],
-                        counts[1],
-                        counts[2],
-                        counts[3],
+                        counts.in_vertices,
+                        counts.in_faces,
+                        counts.out_vertices,
+                        counts.out_faces,
                         process_ms,
                         report_json,
                         preview
@@ -563,10 +593,10 @@ impl Store {
                 .map_err(sq)?;
                 tx.execute("DELETE FROM job_output WHERE job_id=?1", [job.id])
                     .map_err(sq)?;
-                for (p, bytes, sha) in outputs {
+                for f in outputs {
                     tx.execute(
                         "INSERT OR REPLACE INTO job_output(job_id, path, bytes, sha256) VALUES (?1, ?2, ?3, ?4)",
-                        params![job.id, p, *bytes as i64, sha],
+                        params![job.id, f.path, f.bytes as i64, f.sha256],
                     )
                     .map_err(sq)?;
                 }
@@ -603,7 +633,7 @@ impl Store {
                 } else {
                     ("failed", 1, "retry", FinalState::RetryLater)
                 };
-                let run_after = now + backoff_ms(job.attempt, retry.0, retry.1);
+                let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
                 let message = cut(message, MAX_ERROR_BYTES);
                 tx.execute(
                     "UPDATE job SET state=?2, retryable=?3, run_after=?4, finished_at=?5, updated_at=?5,
@@ -616,7 +646,7 @@ impl Store {
                     job.attempt_id,
                     now,
                     outcome,
-                    Some(kind),
+                    Some(*kind),
                     Some(&message),
                     wall_ms,
                 )
@@ -635,7 +665,7 @@ impl Store {
                     job.attempt_id,
                     now,
                     "interrupted",
-                    Some("interrupted"),
+                    Some(FailureKind::Interrupted),
                     Some(reason),
                     wall_ms,
                 )
@@ -661,18 +691,18 @@ impl Store {
         };
         let tx = self.immediate()?;
         tx.execute(
-            "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind='daemon_stopped',
+            "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind=?2,
                 error='the daemon stopped while this attempt ran (counted as an attempt)'
              WHERE outcome IS NULL AND job_id IN (SELECT id FROM job WHERE state='running')",
-            [now],
+            params![now, FailureKind::DaemonStopped],
         )
         .map_err(sq)?;
         tx.execute(
             "UPDATE job SET state='quarantined', retryable=0, finished_at=?1, updated_at=?1,
-                lease_owner=NULL, error_kind='daemon_stopped',
+                lease_owner=NULL, error_kind=?2,
                 error='the daemon stopped while this job ran, on each of its ' || attempts || ' attempts'
              WHERE state='running' AND attempts >= max_attempts",
-            [now],
+            params![now, FailureKind::DaemonStopped],
         )
         .map_err(sq)?;
         let n = tx
@@ -837,7 +867,7 @@ fn close_attempt(
     attempt_id: i64,
     now: i64,
     outcome: &str,
-    kind: Option<&str>,
+    kind: Option<FailureKind>,
     message: Option<&str>,
     wall_ms: f64,
 ) -> rusqlite::Result<()> {

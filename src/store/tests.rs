@@ -40,7 +40,7 @@ fn open() -> (tempfile::TempDir, Store) {
 
 fn failed(transient: bool) -> Finish {
     Finish::Failed {
-        kind: "io".into(),
+        kind: FailureKind::Output,
         message: "boom".into(),
         transient,
     }
@@ -124,9 +124,18 @@ fn claim_finish_done_records_everything() {
     let fin = Finish::Done {
         output_dir: "/out/a".into(),
         preview: Some("/out/a/a.preview.png".into()),
-        outputs: vec![("/out/a/a.obj".into(), 3, "cc".into())],
+        outputs: vec![OutputFile {
+            path: "/out/a/a.obj".into(),
+            bytes: 3,
+            sha256: "cc".into(),
+        }],
         report_json: "{\"metrics\":{\"x\":1}}".into(),
-        counts: [1, 2, 3, 4],
+        counts: MeshSizes {
+            in_vertices: 1,
+            in_faces: 2,
+            out_vertices: 3,
+            out_faces: 4,
+        },
         process_ms: 5.0,
         steps: vec![StepRow {
             kind: "normals".into(),
@@ -139,7 +148,7 @@ fn claim_finish_done_records_everything() {
         }],
     };
     assert_eq!(
-        s.finish(&c, &fin, (1.0, 10.0), 6.0).unwrap(),
+        s.finish(&c, &fin, retry(1.0, 10.0), 6.0).unwrap(),
         FinalState::Done
     );
     let shown = s.show(c.id).unwrap();
@@ -158,7 +167,8 @@ fn transient_failures_back_off_then_quarantine_permanent_fail_at_once() {
     s.enqueue(&job("k1", "a.ply")).unwrap();
     let c = s.claim(&owner()).unwrap().unwrap();
     assert_eq!(
-        s.finish(&c, &failed(true), (3600.0, 3600.0), 1.0).unwrap(),
+        s.finish(&c, &failed(true), retry(3600.0, 3600.0), 1.0)
+            .unwrap(),
         FinalState::RetryLater
     );
     assert!(s.claim(&owner()).unwrap().is_none(), "backoff holds it");
@@ -169,14 +179,14 @@ fn transient_failures_back_off_then_quarantine_permanent_fail_at_once() {
     let c = s.claim(&owner()).unwrap().unwrap();
     assert_eq!(c.attempt, 2);
     assert_eq!(
-        s.finish(&c, &failed(true), (1.0, 1.0), 1.0).unwrap(),
+        s.finish(&c, &failed(true), retry(1.0, 1.0), 1.0).unwrap(),
         FinalState::Quarantined
     );
 
     s.enqueue(&job("k2", "b.ply")).unwrap();
     let c = s.claim(&owner()).unwrap().unwrap();
     assert_eq!(
-        s.finish(&c, &failed(false), (1.0, 1.0), 1.0).unwrap(),
+        s.finish(&c, &failed(false), retry(1.0, 1.0), 1.0).unwrap(),
         FinalState::Failed
     );
     s.connection()
@@ -217,7 +227,7 @@ fn a_graceful_interruption_is_not_counted() {
         reason: "daemon stopped before the job finished".into(),
     };
     assert_eq!(
-        s.finish(&c, &f, (1.0, 1.0), 0.0).unwrap(),
+        s.finish(&c, &f, retry(1.0, 1.0), 0.0).unwrap(),
         FinalState::Requeued
     );
     let c = s.claim(&owner()).unwrap().unwrap();
@@ -236,7 +246,7 @@ fn requeue_bumps_generation_and_refuses_running() {
         s.requeue(c.id),
         Err(StoreError::WrongState { .. })
     ));
-    s.finish(&c, &failed(false), (1.0, 1.0), 1.0).unwrap();
+    s.finish(&c, &failed(false), retry(1.0, 1.0), 1.0).unwrap();
     assert_eq!(s.requeue(c.id).unwrap(), "failed");
     let c2 = s.claim(&owner()).unwrap().unwrap();
     assert_eq!(c2.generation, 1);
@@ -249,11 +259,11 @@ fn vanished_input_job_is_revived_when_input_returns() {
     s.enqueue(&job("k1", "a.ply")).unwrap();
     let c = s.claim(&owner()).unwrap().unwrap();
     let gone = Finish::Failed {
-        kind: "input_vanished".into(),
+        kind: FailureKind::InputVanished,
         message: "gone".into(),
         transient: false,
     };
-    s.finish(&c, &gone, (1.0, 1.0), 1.0).unwrap();
+    s.finish(&c, &gone, retry(1.0, 1.0), 1.0).unwrap();
     assert_eq!(
         s.enqueue(&job("k1", "back.ply")).unwrap(),
         Enqueued::Revived(1)
@@ -328,11 +338,11 @@ fn a_huge_failure_message_is_cut_when_recorded() {
     s.enqueue(&job("k1", "a.ply")).unwrap();
     let c = s.claim(&owner()).unwrap().unwrap();
     let f = Finish::Failed {
-        kind: "input".into(),
+        kind: FailureKind::Input,
         message: "é".repeat(100_000),
         transient: false,
     };
-    s.finish(&c, &f, (1.0, 1.0), 1.0).unwrap();
+    s.finish(&c, &f, retry(1.0, 1.0), 1.0).unwrap();
     let shown = s.show(c.id).unwrap();
     let stored: String = s
         .connection()
@@ -352,4 +362,11 @@ fn a_huge_failure_message_is_cut_when_recorded() {
         .unwrap();
     assert_eq!(logged, stored);
     assert_eq!(shown["state"], "failed");
+}
+
+fn retry(base_secs: f64, max_secs: f64) -> RetryPolicy {
+    RetryPolicy {
+        base_secs,
+        max_secs,
+    }
 }

@@ -449,13 +449,13 @@ impl<'a, const M: usize> Cluster<'a, M> {
             plans[id] = Some(plan);
         }
         let mut report = DecimateReport {
-            stopped_by: "target".into(),
+            stopped_by: super::StopReason::Target,
             ..Default::default()
         };
         let mut error_reached = 0.0f64;
         while self.live > target {
             let Some(Reverse((_, id))) = heap.pop() else {
-                report.stopped_by = "no-candidates".into();
+                report.stopped_by = super::StopReason::NoCandidates;
                 break;
             };
             let id = id as usize;
@@ -473,7 +473,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
             };
             let error = (cost.max(0.0) / area.max(f64::MIN_POSITIVE)).sqrt();
             if error > max_error {
-                report.stopped_by = "max-error".into();
+                report.stopped_by = super::StopReason::MaxError;
                 break;
             }
             error_reached = error_reached.max(error);

@@ -1,9 +1,11 @@
 //! Edge collapse over the same wedge-aware quadrics and guards (spec/decimation.md §2.3,
 //! thesis §1.2.1, full-edge variant): a triangle's candidate is the cheapest of its three
-//! sides, so the lazy triangle heap of face collapse drives it unchanged.
+//! sides, so the lazy triangle heap of face collapse drives it unchanged
+//! ([`super::collapse_loop`]).
 
 use super::Refusal;
-use super::face_collapse::LoopStats;
+use super::collapse_loop::{CollapseOperator, LoopStats, live_triangles};
+use super::heap::IndexedHeap;
 use super::work::{Plan, Scratch, Work};
 
 fn sides<const M: usize>(work: &Work<M>, t: usize) -> [[u32; 2]; 3] {
@@ -115,4 +117,88 @@ pub fn attempt<const M: usize>(
         }
     }
     Err(eval_cause.unwrap_or(quick_cause))
+}
+
+/// Edge collapse as the loop's operator: a triangle's candidate is its cheapest side.
+pub struct EdgeCollapse;
+
+impl CollapseOperator for EdgeCollapse {
+    const NAME: &'static str = "edge collapses";
+
+    fn candidate<const M: usize>(
+        &self,
+        work: &Work<M>,
+        t: usize,
+        side: &mut u8,
+    ) -> Result<f64, Refusal> {
+        best_side(work, t).map(|(i, cost)| {
+            *side = i as u8;
+            cost
+        })
+    }
+
+    fn attempt<const M: usize>(
+        &self,
+        work: &mut Work<M>,
+        t: usize,
+        best: Option<(usize, f64)>,
+        max_error: f64,
+        sc: &mut Scratch<M>,
+        stats: &mut LoopStats,
+    ) -> Result<Plan, Refusal> {
+        attempt(work, t, best, max_error, sc, stats)
+    }
+
+    /// Each side at the new vertex is shared by two fan triangles, so its cost is computed
+    /// once (`memo`); the side opposite the vertex did not change, and when it was the
+    /// triangle's cheapest side (`side`) its cost is the triangle's current key, so only the
+    /// other sides are recomputed.
+    fn rekey<const M: usize>(
+        &self,
+        work: &Work<M>,
+        u: usize,
+        k: usize,
+        heap: &IndexedHeap,
+        side: &mut u8,
+        memo: &mut Vec<(u32, Result<f64, Refusal>)>,
+    ) -> Result<f64, Refusal> {
+        let vs = work.tv[u];
+        let n = vs[k];
+        let mut cost_to = |x: u32| match memo.iter().find(|e| e.0 == x) {
+            Some(e) => e.1,
+            None => {
+                let r = work.quick_cost(&[n, x]);
+                memo.push((x, r));
+                r
+            }
+        };
+        // Sides in the triangle's own order: (v0,v1), (v1,v2), (v2,v0).
+        let opposite = (k + 1) % 3;
+        let mut costs = [Err(Refusal::Locked); 3];
+        costs[k] = cost_to(vs[(k + 1) % 3]);
+        costs[(k + 2) % 3] = cost_to(vs[(k + 2) % 3]);
+        costs[opposite] = match heap.key(u as u32) {
+            Some(key) if *side as usize == opposite => Ok(f64::from_bits(key)),
+            _ => work.quick_cost(&[vs[opposite], vs[(opposite + 1) % 3]]),
+        };
+        combine(costs).map(|(i, cost)| {
+            *side = i as u8;
+            cost
+        })
+    }
+
+    fn for_each_candidate<const M: usize>(&self, work: &Work<M>, f: &mut dyn FnMut(&[u32])) {
+        let mut edges: Vec<(u32, u32)> = live_triangles(work)
+            .flat_map(|t| {
+                let v = work.tv[t];
+                [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])]
+            })
+            .map(|(a, b)| (a.min(b), a.max(b)))
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        for (a, b) in edges {
+            f(&[a, b]);
+        }
+    }
 }

@@ -12,8 +12,8 @@
 
 pub mod audit;
 pub mod cluster;
+pub mod collapse_loop;
 pub mod edge_collapse;
-pub mod face_collapse;
 pub mod guards;
 pub mod halves;
 mod heap;
@@ -21,7 +21,8 @@ pub mod quadric;
 pub mod work;
 
 use crate::mesh::Mesh;
-use face_collapse::Operator;
+use collapse_loop::{CollapseOperator, FaceCollapse};
+use edge_collapse::EdgeCollapse;
 use quadric::Weights;
 use serde::{Deserialize, Serialize};
 use work::{Config, Work};
@@ -69,7 +70,6 @@ pub enum BoundaryMode {
     Free,
 }
 
-/// Order of the face-collapse heap.
 /// Whether edge collapse first decimates the two halves of the mesh on two cores
 /// ([`halves`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -85,6 +85,7 @@ pub enum Halves {
     Off,
 }
 
+/// Order of the collapse heap.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Priority {
@@ -363,6 +364,19 @@ impl RefusedCounts {
     }
 }
 
+/// Why a decimation stopped (the report's `stopped_by`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StopReason {
+    /// The face target was reached.
+    #[default]
+    Target,
+    /// The next collapse would exceed `max_error`.
+    MaxError,
+    /// Every collapse left is refused (by a guard, or there is none).
+    NoCandidates,
+}
+
 /// The step's figures.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct DecimateReport {
@@ -374,8 +388,7 @@ pub struct DecimateReport {
     pub target_faces: Option<usize>,
     /// Largest collapse error reached, as a fraction of the bounding-box diagonal.
     pub error_reached: f64,
-    /// "target", "max-error" or "no-candidates".
-    pub stopped_by: String,
+    pub stopped_by: StopReason,
     pub collapses: usize,
     pub refused: RefusedCounts,
     /// When the target was not reached: every collapse still possible (edges for edge
@@ -526,30 +539,31 @@ fn run<const M: usize>(
                 1.0
             };
             let max_error = params.max_error.map_or(f64::INFINITY, |e| e / to_diag);
-            let op = if params.method == Method::FaceCollapse {
-                Operator::Face
-            } else {
-                Operator::Edge
-            };
             let target = params.target_faces.unwrap_or(0);
-            let stats = face_collapse::run(&mut work, op, params.priority, target, max_error);
+            let (stats, what) = if params.method == Method::FaceCollapse {
+                let op = FaceCollapse {
+                    priority: params.priority,
+                };
+                let stats = collapse_loop::run(&mut work, &op, target, max_error);
+                (stats, FaceCollapse::NAME)
+            } else {
+                let stats = collapse_loop::run(&mut work, &EdgeCollapse, target, max_error);
+                (stats, EdgeCollapse::NAME)
+            };
             let (t2, c2) = (std::time::Instant::now(), cpu_seconds());
             let classes = work.classes;
             let report = DecimateReport {
                 error_reached: stats.max_error * to_diag,
-                stopped_by: if stats.stopped_by == "no-candidates" && params.max_error.is_some() {
-                    "max-error".to_string()
+                stopped_by: if stats.stopped_by == StopReason::NoCandidates
+                    && params.max_error.is_some()
+                {
+                    StopReason::MaxError
                 } else {
-                    stats.stopped_by.to_string()
+                    stats.stopped_by
                 },
                 collapses: stats.collapses,
                 refused: stats.refused,
                 stop_note: stats.blocked.map(|b| {
-                    let what = if op == Operator::Edge {
-                        "edge collapses"
-                    } else {
-                        "face collapses"
-                    };
                     let causes: Vec<String> = b
                         .ranked()
                         .iter()
@@ -587,20 +601,8 @@ fn run<const M: usize>(
     }
 }
 
-/// CPU time of the process (all threads) in seconds, for the phase timings in the debug log (the
-/// machine is shared, so wall time alone says little).
-pub(crate) fn cpu_seconds() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the call only writes it.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return 0.0;
-    }
-    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-}
+/// The process's CPU time, for the phase timings in the debug log.
+pub(crate) use crate::geom::timing::cpu_seconds;
 
 #[cfg(test)]
 mod tests;

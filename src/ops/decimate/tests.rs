@@ -222,12 +222,21 @@ fn boundary_modes() {
     }
 }
 
+/// The same result on one thread and on several, for both collapse operators (the
+/// candidates' first keys are computed in parallel).
 #[test]
-fn deterministic() {
+fn deterministic_across_thread_counts() {
     let m = seamed_grid(30);
-    let a = decimate(&m, &params(Method::FaceCollapse, 500)).unwrap().0;
-    let b = decimate(&m, &params(Method::FaceCollapse, 500)).unwrap().0;
-    assert_eq!(a, b);
+    for method in [Method::FaceCollapse, Method::EdgeCollapse] {
+        let on = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| decimate(&m, &params(method, 500)).unwrap().0)
+        };
+        assert_eq!(on(1), on(3), "{method:?}");
+    }
 }
 
 #[test]

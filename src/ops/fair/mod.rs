@@ -418,7 +418,8 @@ pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
 
 /// [`run`], starting from the connectivity a previous `relax` or `fair` on the same
 /// triangles left (built afresh when there is none or it does not fit), and returning the
-/// connectivity for the next.
+/// connectivity for the next. The phases: choose the fixed vertices, fair the border curves,
+/// fair the interior with the border held still, report.
 pub fn run_with(
     mesh: &mut Mesh,
     plan: &Plan,
@@ -430,8 +431,7 @@ pub fn run_with(
         time_scale: 1,
         ..FairReport::default()
     };
-    let n = mesh.positions.len();
-    if n == 0 || mesh.triangles.is_empty() {
+    if mesh.positions.is_empty() || mesh.triangles.is_empty() {
         return (report, None);
     }
     // The full topology is needed only to build the connectivity and for creases.
@@ -446,18 +446,59 @@ pub fn run_with(
     if !positive(scale) {
         return (report, Some(connectivity));
     }
-
-    // Which vertices stay fixed, and why.
-    let mut fixed = vec![false; n];
-    let used: Vec<bool> = {
-        let mut u = vec![false; n];
-        for t in 0..mesh.triangles.len() {
-            for v in mesh.triangle_vertices(t) {
-                u[v as usize] = true;
-            }
-        }
-        u
+    let fixed = fixed_vertices(mesh, nb, plan, &mut topo, &mut report);
+    let references = guards::triangle_references(mesh, &input, |v| {
+        plan.tangential || (nb.is_manifold(v as usize) && !nb.is_closed(v as usize))
+    });
+    let mut positions = std::mem::take(&mut mesh.positions);
+    let mut guard_counts = GuardCounts::default();
+    let sweep = Sweep {
+        nb,
+        plan,
+        references: &references,
+        fixed: &fixed,
     };
+    let border_movable = sweep.fair_borders(
+        &connectivity.chains,
+        &mut positions,
+        &mut guard_counts,
+        &mut report,
+    );
+    // The mesh's full topology is not needed past this point; the neighbourhood has
+    // what the sweeps use (a 400k-triangle scan's is ~40 MB).
+    drop(topo);
+    let (stats, interior_movable) = sweep.fair_interior(
+        mesh,
+        &input,
+        scale,
+        &mut positions,
+        &mut guard_counts,
+        &mut report,
+    );
+    mesh.positions = positions;
+    report.movable_vertices = border_movable + interior_movable;
+    finish_report(&mut report, mesh, &input, &stats, &guard_counts, start);
+    tracing::debug!(?report, "fairing done");
+    (report, Some(connectivity))
+}
+
+/// Which vertices stay fixed, counted by reason in `report.fixed`: non-manifold ones,
+/// creases (with a feature angle) and high-valence hubs with their 1-ring.
+fn fixed_vertices(
+    mesh: &Mesh,
+    nb: &Neighbourhood,
+    plan: &Plan,
+    topo: &mut Option<Topology>,
+    report: &mut FairReport,
+) -> Vec<bool> {
+    let n = mesh.positions.len();
+    let mut fixed = vec![false; n];
+    let mut used = vec![false; n];
+    for t in 0..mesh.triangles.len() {
+        for v in mesh.triangle_vertices(t) {
+            used[v as usize] = true;
+        }
+    }
     for v in 0..n {
         if used[v] && !nb.is_manifold(v) {
             fixed[v] = true;
@@ -480,11 +521,10 @@ pub fn run_with(
         .max_valence
         .unwrap_or_else(|| guards::default_valence_limit(nb));
     report.valence_limit = limit;
-    // A hub and its whole 1-ring: fixing the hub alone does not save the vase (§3.8.1):
-    // its neighbours' curvature is dominated by the hub's long triangles, whose squared
-    // areas pull them towards the hub, and the cap contracts around it (measured: top
-    // radius 0.845 → 0.55 after 5000 iterations with the hub fixed, kept with the ring
-    // fixed too). No real scan in ../shared/data has a vertex above the limit.
+    // A hub and its whole 1-ring: fixing the hub alone does not save the vase (§3.8.1 of the
+    // fairing thesis): its neighbours' curvature is dominated by the hub's long triangles,
+    // whose squared areas pull them towards the hub, and the cap contracts around it
+    // (docs/fairing.md has the measurement).
     let hubs: Vec<usize> = (0..n)
         .filter(|&v| nb.ring(v).len() > limit as usize)
         .collect();
@@ -496,34 +536,53 @@ pub fn run_with(
             }
         }
     }
+    fixed
+}
 
-    let references = guards::triangle_references(mesh, &input, |v| {
-        plan.tangential || (nb.is_manifold(v as usize) && !nb.is_closed(v as usize))
-    });
-    let mut positions = std::mem::take(&mut mesh.positions);
-    let mut guard_counts = GuardCounts::default();
-    let mut movable_total = 0usize;
+/// What both fairing phases read.
+struct Sweep<'a> {
+    nb: &'a Neighbourhood,
+    plan: &'a Plan,
+    references: &'a [guards::Reference],
+    fixed: &'a [bool],
+}
 
-    // C: boundary curves first, completely (§4.5, App. B default).
-    let (curves, held) = boundary::boundary_curves(&connectivity.chains, &fixed);
-    let boundary_fair = plan.boundary == BoundaryMode::Fair
-        && plan.curve.max_iterations > 0
-        && plan.curve.t_h + plan.curve.t_u > 0;
-    if boundary_fair {
+impl Sweep<'_> {
+    /// C: the boundary curves first, completely (§4.5, App. B default), or, with the border
+    /// fixed, counts it as held. Returns how many border vertices could move.
+    fn fair_borders(
+        &self,
+        chains: &[BoundaryChain],
+        positions: &mut [DVec3],
+        guard_counts: &mut GuardCounts,
+        report: &mut FairReport,
+    ) -> usize {
+        let (nb, plan, fixed) = (self.nb, self.plan, self.fixed);
+        let (curves, held) = boundary::boundary_curves(chains, fixed);
+        let boundary_fair = plan.boundary == BoundaryMode::Fair
+            && plan.curve.max_iterations > 0
+            && plan.curve.t_h + plan.curve.t_u > 0;
+        if !boundary_fair {
+            report.fixed.boundary += (0..positions.len())
+                .filter(|&v| nb.is_manifold(v) && !nb.is_closed(v) && !fixed[v])
+                .count();
+            return 0;
+        }
         report.fixed.boundary += held.iter().filter(|&&v| !fixed[v as usize]).count();
+        let mut movable = 0;
         for c in &curves {
             let s = boundary::fair_boundary_curve(
-                &mut positions,
+                positions,
                 nb,
                 c,
                 &plan.curve,
                 plan.epsilon,
-                &references,
-                &mut guard_counts,
+                self.references,
+                guard_counts,
             );
             report.boundary_iterations = report.boundary_iterations.max(s.iterations);
             report.vertex_updates += s.vertex_updates;
-            movable_total += c
+            movable += c
                 .fixed
                 .iter()
                 .enumerate()
@@ -531,84 +590,95 @@ pub fn run_with(
                 .count();
         }
         report.boundary_curves = curves.len();
-    } else {
-        report.fixed.boundary += (0..n)
-            .filter(|&v| nb.is_manifold(v) && !nb.is_closed(v) && !fixed[v])
-            .count();
+        movable
     }
 
-    // The mesh's full topology is not needed past this point; the neighbourhood has
-    // what the sweeps use. A 400k-triangle scan's is ~40 MB (issue #8's memory budget).
-    drop(topo);
-
-    // S: the interior, boundary held still (§4.4).
-    let movable: Vec<bool> = (0..n).map(|v| nb.is_closed(v) && !fixed[v]).collect();
-    let movable_count = movable.iter().filter(|&&m| m).count();
-    movable_total += movable_count;
-    let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
-        .map(|t| mesh.triangle_vertices(t))
-        .collect();
-    let interior = surface::Interior {
-        nb,
-        movable: &movable,
-        movable_count,
-        triangles: &triangles,
-        references: &references,
-        eps: plan.epsilon / scale,
-        input: plan.tangential.then_some(&input[..]),
-    };
-    let (params, m) = match plan.schedule {
-        Schedule::Thesis => (plan.surface, 1),
-        Schedule::Fast => {
-            let m = plan.surface.fast_time_scale(FAST_MAX_STEP);
-            (plan.surface.time_scaled(m), m)
+    /// S: the interior, the border held still (§4.4). Returns the run's statistics and how
+    /// many interior vertices could move.
+    fn fair_interior(
+        &self,
+        mesh: &Mesh,
+        input: &[DVec3],
+        scale: f64,
+        positions: &mut [DVec3],
+        guard_counts: &mut GuardCounts,
+        report: &mut FairReport,
+    ) -> (RunStats, usize) {
+        let (nb, plan) = (self.nb, self.plan);
+        let movable: Vec<bool> = (0..positions.len())
+            .map(|v| nb.is_closed(v) && !self.fixed[v])
+            .collect();
+        let movable_count = movable.iter().filter(|&&m| m).count();
+        let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
+            .map(|t| mesh.triangle_vertices(t))
+            .collect();
+        let interior = surface::Interior {
+            nb,
+            movable: &movable,
+            movable_count,
+            triangles: &triangles,
+            references: self.references,
+            eps: plan.epsilon / scale,
+            input: plan.tangential.then_some(input),
+        };
+        let (params, m) = match plan.schedule {
+            Schedule::Thesis => (plan.surface, 1),
+            Schedule::Fast => {
+                let m = plan.surface.fast_time_scale(FAST_MAX_STEP);
+                (plan.surface.time_scaled(m), m)
+            }
+        };
+        report.time_scale = m;
+        if movable_count == 0 {
+            return (RunStats::default(), 0);
         }
-    };
-    report.time_scale = m;
-    let mut scratch = surface::FastScratch::default();
-    let stats: RunStats = if movable_count == 0 {
-        RunStats::default()
-    } else {
-        schedule::run(&params, scale, |phase| match (plan.schedule, phase) {
-            (Schedule::Thesis, Phase::Curvature) => surface::thesis_curvature_sweep(
-                &mut positions,
-                &interior,
-                params.lambda,
-                &mut guard_counts,
-            ),
+        let mut scratch = surface::FastScratch::default();
+        let stats = schedule::run(&params, scale, |phase| match (plan.schedule, phase) {
+            (Schedule::Thesis, Phase::Curvature) => {
+                surface::thesis_curvature_sweep(positions, &interior, params.lambda, guard_counts)
+            }
             (Schedule::Thesis, Phase::Nonuniformity) => surface::thesis_nonuniformity_sweep(
-                &mut positions,
+                positions,
                 &interior,
                 params.lambda_u,
-                &mut guard_counts,
+                guard_counts,
             ),
             (Schedule::Fast, Phase::Curvature) => surface::fast_curvature_sweep(
-                &mut positions,
+                positions,
                 &interior,
                 params.lambda,
-                &mut guard_counts,
+                guard_counts,
                 &mut scratch,
             ),
             (Schedule::Fast, Phase::Nonuniformity) => surface::fast_nonuniformity_sweep(
-                &mut positions,
+                positions,
                 &interior,
                 params.lambda_u,
-                &mut guard_counts,
+                guard_counts,
                 &mut scratch,
             ),
-        })
-    };
-    mesh.positions = positions;
+        });
+        (stats, movable_count)
+    }
+}
 
+/// The report's figures of a finished run: iterations, displacement, guards, flips, time.
+fn finish_report(
+    report: &mut FairReport,
+    mesh: &Mesh,
+    input: &[DVec3],
+    stats: &RunStats,
+    guard_counts: &GuardCounts,
+    start: Instant,
+) {
     report.iterations = stats.iterations;
     report.curvature_iterations = stats.curvature_iterations;
     report.nonuniformity_iterations = stats.nonuniformity_iterations;
     report.converged = stats.stopped_by_displacement;
     report.vertex_updates += stats.vertex_updates;
-    report.movable_vertices = movable_total;
-    let (sum, max) = displacement(&input, &mesh.positions);
-    report.mean_displacement = if movable_total > 0 {
-        sum / movable_total as f64
+    let (sum, max) = displacement(input, &mesh.positions);
+    report.mean_displacement = if report.movable_vertices > 0 {
+        sum / report.movable_vertices as f64
     } else {
         0.0
     };
@@ -616,7 +686,7 @@ pub fn run_with(
     report.flips_avoided = guard_counts.flips_avoided;
     report.degenerate_avoided = guard_counts.degenerate_avoided;
     report.moves_skipped = guard_counts.skipped;
-    let input_normals = guards::triangle_normals(mesh, &input);
+    let input_normals = guards::triangle_normals(mesh, input);
     report.flipped_vs_input = guards::turned_over(mesh, &input_normals, &mesh.positions);
     let secs = start.elapsed().as_secs_f64();
     report.time_ms = secs * 1e3;
@@ -625,8 +695,6 @@ pub fn run_with(
     } else {
         0.0
     };
-    tracing::debug!(?report, "fairing done");
-    (report, Some(connectivity))
 }
 
 /// `x > 0`, false for NaN: degenerate-geometry tests written so that NaN counts as

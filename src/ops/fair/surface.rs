@@ -13,6 +13,7 @@ use super::guards::{
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::Sweep;
+use crate::geom::closest_on_triangle;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
@@ -292,7 +293,7 @@ impl Interior<'_> {
         let a = input[v];
         let mut best = (f64::INFINITY, c);
         for i in 0..k {
-            let p = closest_on_triangle(
+            let (p, _) = closest_on_triangle(
                 c,
                 a,
                 input[ring[i] as usize],
@@ -305,43 +306,6 @@ impl Interior<'_> {
         }
         best.1
     }
-}
-
-/// The point of triangle `abc` closest to `p` (Ericson, *Real-Time Collision Detection*,
-/// §5.1.5), by its Voronoi regions.
-fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = va + vb + vc;
-    if !positive(denom.abs()) {
-        return a; // zero-area triangle
-    }
-    a + ab * (vb / denom) + ac * (vc / denom)
 }
 
 /// The references of `v`'s fan triangles.
@@ -910,20 +874,6 @@ mod tests {
             let signed = after.magnitude * after.vector.dot(c.vector).signum();
             assert!((signed - r * c.magnitude).abs() < 1e-9, "{r}");
         }
-    }
-
-    #[test]
-    fn closest_point_on_a_triangle_by_region() {
-        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
-        let near = |(x, y, z), expected: DVec3| {
-            let p = closest_on_triangle(DVec3::new(x, y, z), a, b, c);
-            assert!((p - expected).length() < 1e-15, "{p} vs {expected}");
-        };
-        near((0.2, 0.3, 1.0), DVec3::new(0.2, 0.3, 0.0)); // face
-        near((-1.0, -1.0, 0.5), a); // vertex
-        near((2.0, -0.5, 0.0), b);
-        near((0.5, -1.0, 0.3), DVec3::new(0.5, 0.0, 0.0)); // edge ab
-        near((1.0, 1.0, 0.0), DVec3::new(0.5, 0.5, 0.0)); // edge bc
     }
 
     #[test]

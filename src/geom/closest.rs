@@ -1,0 +1,94 @@
+//! The point of a triangle closest to a point.
+
+use glam::DVec3;
+
+/// The point of triangle `a b c` closest to `p`, and its barycentric weights, by the
+/// Voronoi-region case analysis (Ericson, *Real-Time Collision Detection*, §5.1.5): every
+/// corner and edge region is tested before the interior, so a degenerate triangle still
+/// gives a point on it.
+///
+/// The one degenerate rule: when the interior case's denominator (twice the squared area,
+/// in effect) is zero, subnormal or not finite, the answer is corner `a` (weights `(1, 0, 0)`).
+/// Only a zero-area triangle whose edge regions all failed reaches it.
+#[inline]
+pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DVec3) {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (a, DVec3::X);
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return (b, DVec3::Y);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return (a + ab * v, DVec3::new(1.0 - v, v, 0.0));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return (c, DVec3::Z);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return (a + ac * w, DVec3::new(1.0 - w, 0.0, w));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (b + (c - b) * w, DVec3::new(0.0, 1.0 - w, w));
+    }
+    let denom = va + vb + vc;
+    if denom.abs() <= f64::MIN_POSITIVE || !denom.is_finite() {
+        return (a, DVec3::X);
+    }
+    let v = vb / denom;
+    let w = vc / denom;
+    (a + ab * v + ac * w, DVec3::new(1.0 - v - w, v, w))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::closest_on_triangle;
+    use glam::DVec3;
+
+    #[test]
+    fn regions_and_the_degenerate_rule() {
+        let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        // Interior: straight down onto the plane.
+        let (q, w) = closest_on_triangle(DVec3::new(0.25, 0.25, 3.0), a, b, c);
+        assert!((q - DVec3::new(0.25, 0.25, 0.0)).length() < 1e-15);
+        assert!((w - DVec3::new(0.5, 0.25, 0.25)).length() < 1e-15);
+        // Corner and edge regions.
+        assert_eq!(
+            closest_on_triangle(DVec3::new(-1.0, -1.0, 0.0), a, b, c).0,
+            a
+        );
+        assert_eq!(
+            closest_on_triangle(DVec3::new(2.0, -0.5, 0.0), a, b, c).0,
+            b
+        );
+        let (q, _) = closest_on_triangle(DVec3::new(0.5, -1.0, 0.0), a, b, c);
+        assert_eq!(q, DVec3::new(0.5, 0.0, 0.0));
+        let (q, _) = closest_on_triangle(DVec3::new(1.0, 1.0, 0.0), a, b, c);
+        assert!((q - DVec3::new(0.5, 0.5, 0.0)).length() < 1e-15, "{q}");
+        // A triangle whose corners coincide: the point, whatever p is.
+        let (q, w) = closest_on_triangle(DVec3::new(1.0, 2.0, 3.0), b, b, b);
+        assert_eq!((q, w), (b, DVec3::X));
+        // Collinear corners: a point on the segment, never NaN.
+        let (q, _) = closest_on_triangle(DVec3::new(0.5, 1.0, 0.0), a, b, 2.0 * b);
+        assert!(
+            q.is_finite() && q.y == 0.0 && (0.0..=2.0).contains(&q.x),
+            "{q}"
+        );
+    }
+}

@@ -1,0 +1,199 @@
+//! The shape every recipe step has: [`RecipeStep`], run on the mesh against a
+//! [`StepContext`] that carries what steps hand each other.
+//!
+//! A step's parameters (the struct its `[[step]]` table deserialises into) implement
+//! [`RecipeStep`]; [`Step::as_recipe_step`] maps the recipe's `kind` to it. The runner
+//! (`runner.rs`) knows nothing of any particular step: it times each, reports its figures and
+//! keeps the context between them.
+
+use super::Step;
+use crate::mesh::Mesh;
+use crate::ops;
+use serde_json::Value;
+use std::sync::Arc;
+
+/// One recipe step. `run` changes the mesh in place and returns the step's figures (any
+/// serialisable report, see [`figures`]) or a one-line error, which fails the run.
+pub trait RecipeStep {
+    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String>;
+
+    /// The step only moves vertices: same wedges, texture coordinates and triangles. The
+    /// runner then carries the texture along the surface after a run of such steps
+    /// (`ops::texture_follow`).
+    fn moves_vertices(&self) -> bool {
+        false
+    }
+
+    /// The step uses (and leaves) [`StepContext::fairing`]: the connectivity one fairing
+    /// step hands the next, kept only between such steps.
+    fn uses_fairing_connectivity(&self) -> bool {
+        false
+    }
+
+    /// The step reads [`StepContext::seam_reference`], so the runner keeps a copy of the
+    /// input while the steps run.
+    fn needs_seam_reference(&self) -> bool {
+        false
+    }
+
+    /// The step removes surface on purpose (`crop`): the final metrics measure against the
+    /// mesh as it leaves it (see `metrics::schedule`).
+    fn removes_surface(&self) -> bool {
+        false
+    }
+
+    /// Run on `mesh`, the step keeps only one core busy for most of its time, so work that
+    /// does not depend on it (the metrics' reference) can run beside it.
+    fn leaves_a_core_idle(&self, _mesh: &Mesh) -> bool {
+        false
+    }
+}
+
+/// What steps hand each other while a recipe runs.
+#[derive(Default)]
+pub struct StepContext {
+    /// The mesh `seam_fix` projects onto: the input as loaded until a replacing step
+    /// (`decimate`) runs after another step, then the mesh that step started from (positions
+    /// and texture coordinates as the decimator saw them). `None` when no step reads it.
+    ///
+    /// Why not the loaded input: after `relax` and `fair` the loaded positions are up to a
+    /// few edge lengths away, and projecting the faired corners onto them smeared texture
+    /// along the eyebrows of Lee Perry-Smith. Triangle origins always index the loaded mesh;
+    /// `seam_fix` maps them through the snapshot's own origins when a crop changed them.
+    pub seam_reference: Option<Arc<Mesh>>,
+    /// The connectivity a `relax` or `fair` step leaves for the next one (see
+    /// [`RecipeStep::uses_fairing_connectivity`]).
+    pub fairing: Option<ops::fair::Connectivity>,
+    /// A step has run already.
+    pub(super) changed: bool,
+}
+
+impl StepContext {
+    /// A context whose seam reference is `input` (see [`StepContext::seam_reference`]).
+    pub fn new(seam_reference: Option<Arc<Mesh>>) -> StepContext {
+        StepContext {
+            seam_reference,
+            ..StepContext::default()
+        }
+    }
+
+    /// A step replaced the mesh; `old` is the mesh it started from. It becomes the seam
+    /// reference when there is one and a step ran before (no copy is made: the replacing
+    /// step needed it whole until its output was built anyway).
+    pub fn replaced(&mut self, old: Mesh) {
+        if self.changed && self.seam_reference.is_some() {
+            self.seam_reference = Some(Arc::new(old));
+        }
+    }
+}
+
+/// A step's report as the JSON figures of the run's report.
+pub fn figures<T: serde::Serialize>(value: T) -> Value {
+    serde_json::to_value(value).expect("step figures always serialise")
+}
+
+impl Step {
+    /// The step's parameters as the step itself.
+    pub fn as_recipe_step(&self) -> &dyn RecipeStep {
+        match self {
+            Step::Crop(p) => p,
+            Step::Relax(p) => p,
+            Step::Fair(p) => p,
+            Step::Smooth(p) => p,
+            Step::Decimate(p) => p,
+            Step::SeamFix(p) => p,
+            Step::Normals(p) => p,
+        }
+    }
+}
+
+impl RecipeStep for ops::normals::NormalsParams {
+    fn run(&self, mesh: &mut Mesh, _: &mut StepContext) -> Result<Value, String> {
+        Ok(figures(ops::normals::recompute_normals(mesh, self)))
+    }
+}
+
+impl RecipeStep for ops::crop::CropParams {
+    fn run(&self, mesh: &mut Mesh, _: &mut StepContext) -> Result<Value, String> {
+        ops::crop::crop(mesh, self)
+            .map(figures)
+            .map_err(|e| e.to_string())
+    }
+
+    fn removes_surface(&self) -> bool {
+        true
+    }
+}
+
+impl RecipeStep for ops::decimate::DecimateParams {
+    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
+        let (out, report) = ops::decimate::decimate(mesh, self).map_err(|e| e.to_string())?;
+        cx.replaced(std::mem::replace(mesh, out));
+        Ok(figures(report))
+    }
+
+    /// A one-pass collapse loop is sequential; a decimation in halves keeps both cores busy
+    /// itself.
+    fn leaves_a_core_idle(&self, mesh: &Mesh) -> bool {
+        ops::decimate::halves::wanted(mesh, self).is_none()
+    }
+}
+
+impl RecipeStep for ops::seam_fix::SeamFixParams {
+    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
+        let input = cx
+            .seam_reference
+            .as_deref()
+            .ok_or("seam_fix needs the loaded input mesh")?;
+        Ok(figures(ops::seam_fix::seam_fix(mesh, input, self)))
+    }
+
+    fn needs_seam_reference(&self) -> bool {
+        true
+    }
+}
+
+/// `relax` and `fair` run the same fairing loop with different plans.
+fn fair(mesh: &mut Mesh, plan: &ops::fair::Plan, cx: &mut StepContext) -> Result<Value, String> {
+    let (report, connectivity) = ops::fair::run_with(mesh, plan, cx.fairing.take());
+    cx.fairing = connectivity;
+    Ok(figures(report))
+}
+
+impl RecipeStep for ops::fair::RelaxParams {
+    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
+        fair(mesh, &self.plan(), cx)
+    }
+
+    fn moves_vertices(&self) -> bool {
+        true
+    }
+
+    fn uses_fairing_connectivity(&self) -> bool {
+        true
+    }
+}
+
+impl RecipeStep for ops::fair::FairParams {
+    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
+        fair(mesh, &self.plan(), cx)
+    }
+
+    fn moves_vertices(&self) -> bool {
+        true
+    }
+
+    fn uses_fairing_connectivity(&self) -> bool {
+        true
+    }
+}
+
+impl RecipeStep for ops::smooth::SmoothParams {
+    fn run(&self, mesh: &mut Mesh, _: &mut StepContext) -> Result<Value, String> {
+        Ok(figures(ops::smooth::smooth(mesh, self)))
+    }
+
+    fn moves_vertices(&self) -> bool {
+        true
+    }
+}
