@@ -4,6 +4,7 @@
 mod common;
 
 use glam::DVec3;
+use scanmill::geom::segment_distance;
 use scanmill::mesh::{Mesh, Topology};
 use scanmill::metrics::{self, MetricsOptions, TextureDeviation};
 use scanmill::ops::crop::{CropMode, CropParams, crop};
@@ -39,12 +40,6 @@ fn params(lo: DVec3, hi: DVec3, mode: CropMode) -> CropParams {
 
 fn on_box_plane(p: DVec3, lo: DVec3, hi: DVec3) -> bool {
     (0..3).any(|a| (p[a] - lo[a]).abs() <= 1e-9 || (p[a] - hi[a]).abs() <= 1e-9)
-}
-
-fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = ((p - a).dot(ab) / ab.length_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
-    p.distance(a + ab * t)
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The point of a triangle closest to a point.
+//! The point of a triangle closest to a point, and a point's distance to a segment.
 
 use glam::DVec3;
 
@@ -54,6 +54,17 @@ pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DV
     let v = vb / denom;
     let w = vc / denom;
     (a + ab * v + ac * w, DVec3::new(1.0 - v - w, v, w))
+}
+
+/// The distance from `p` to the segment `a b` (a point when `a == b`).
+pub fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let ab = b - a;
+    let t = if ab.length_squared() > 0.0 {
+        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * t).distance(p)
 }
 
 #[cfg(test)]

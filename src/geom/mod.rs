@@ -1,13 +1,16 @@
 //! Geometric and measuring primitives that several parts of the crate share (steps,
 //! metrics, benches): one copy of each.
 //!
-//! - [`closest`]: the point of a triangle closest to a point;
+//! - [`closest`]: the point of a triangle closest to a point, the distance to a segment;
 //! - [`timing`]: the process's CPU time.
 //!
-//! The triangle BVH and the surface sampler still live in `metrics` (`metrics::bvh`,
-//! `metrics::surface`) though `seam_fix` and `texture_follow` use them too; they belong here.
+//! - [`bvh`]: the closest-point index over a mesh's triangles (metrics, preview, `seam_fix`,
+//!   texture follow; also reachable as `metrics::bvh`).
+//!
+//! The surface sampler still lives in `metrics::surface`.
 
+pub mod bvh;
 pub mod closest;
 pub mod timing;
 
-pub use closest::closest_on_triangle;
+pub use closest::{closest_on_triangle, segment_distance};

@@ -22,7 +22,7 @@ pub struct OneSided {
     pub rms: f64,
     pub max: f64,
     /// Samples whose closest-point search stopped at its budget (triangles overlapping so
-    /// that no box separates them, [`super::bvh::TriangleBvh::search`]): their distances
+    /// that no box separates them, [`crate::geom::bvh::TriangleBvh::search`]): their distances
     /// are upper bounds. Left out of the report when there are none.
     #[serde(skip_serializing_if = "is_zero")]
     pub inexact: usize,

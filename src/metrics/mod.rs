@@ -6,7 +6,8 @@
 //! the parallel closest-point queries are collected in sample order, and every sum runs
 //! sequentially in that order, so the figures do not depend on the thread count.
 
-pub mod bvh;
+/// The closest-point index, kept at its old path (it lives in [`crate::geom`]).
+pub use crate::geom::bvh;
 pub mod distance;
 pub mod noise;
 pub mod normals;

@@ -1,8 +1,8 @@
 //! What every two-mesh metric needs: seeded area-uniform samples on a surface, and exact
-//! closest-point queries on the other surface through a BVH (`super::bvh::TriangleBvh`).
+//! closest-point queries on the other surface through a BVH (`crate::geom::bvh::TriangleBvh`).
 
 use super::MetricsError;
-use super::bvh::{Search, TriangleBvh};
+use crate::geom::bvh::{Search, TriangleBvh};
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rand::{RngExt, SeedableRng};
@@ -92,12 +92,12 @@ pub struct Closest {
     pub on: SurfacePoint,
     pub distance: f64,
     /// Whether the search proved this the closest point; `false` when it stopped at its
-    /// budget (overlapping triangles, [`super::bvh::TriangleBvh::search`]): `distance` is
+    /// budget (overlapping triangles, [`crate::geom::bvh::TriangleBvh::search`]): `distance` is
     /// then an upper bound.
     pub exact: bool,
 }
 
-/// An index over a mesh's triangles for exact closest-point queries ([`super::bvh`]).
+/// An index over a mesh's triangles for exact closest-point queries ([`crate::geom::bvh`]).
 /// Zero-area triangles are left out: they add no surface, and the projection onto them is
 /// ill-defined.
 pub struct SurfaceIndex<'a> {

@@ -9,8 +9,8 @@
 //! well under two input edges; an opened seam or hole in the middle of the surface is
 //! farther than that from any border.
 
+use crate::geom::segment_distance;
 use crate::mesh::{Mesh, Topology, TopologyCounts, summary};
-use crate::metrics::bvh::segment_distance;
 use glam::DVec3;
 use parry3d_f64::bounding_volume::Aabb;
 use parry3d_f64::math::Vector as PVector;

@@ -26,8 +26,8 @@
 //! inconsistently with geometry — which is what a jump across charts looks like.
 
 use super::texture_follow::{WedgeTriangles, charts, uv_at};
+use crate::geom::bvh::TriangleBvh;
 use crate::mesh::{Index, Mesh, Wedge};
-use crate::metrics::bvh::TriangleBvh;
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
 

@@ -11,8 +11,8 @@
 //! point among the corner's own triangles, which are in its chart by definition. Seams and
 //! wedges stay as they are; only texture coordinate values change.
 
+use crate::geom::bvh::{TriangleBvh, TriangleHit};
 use crate::mesh::{Index, Mesh};
-use crate::metrics::bvh::{TriangleBvh, TriangleHit};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use serde::Serialize;

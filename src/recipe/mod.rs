@@ -28,7 +28,10 @@ pub enum RecipeError {
     },
     #[error("{}: {message}", crate::text::escape_path(path))]
     Parse { path: PathBuf, message: String },
-    #[error("{}: line {line}: step `{kind}`: {message}", crate::text::escape_path(path))]
+    #[error(
+        "{}: line {line}: step `{kind}`: {message}",
+        crate::text::escape_path(path)
+    )]
     Invalid {
         path: PathBuf,
         line: usize,

@@ -3,9 +3,9 @@
 //! faces, texture coordinates that left their chart, seam vertices that left their seam,
 //! and border edges that are not input border edges.
 
+use crate::geom::segment_distance;
 use crate::mesh::Mesh;
 use crate::mesh::topology::{Topology, TopologyCounts};
-use crate::metrics::bvh::segment_distance;
 use glam::{DVec2, DVec3};
 use serde::Serialize;
 use std::collections::HashSet;

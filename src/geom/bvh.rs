@@ -12,6 +12,7 @@
 //! [`closest_on_triangle`]) and deterministic: the tree does not depend on the thread count,
 //! and the traversal order (nearer child first) only depends on the tree and the query.
 
+use crate::geom::closest_on_triangle;
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -447,67 +448,6 @@ fn box_distance_squared(n: &Node, p: DVec3) -> f64 {
     let hi = DVec3::new(n.max[0] as f64, n.max[1] as f64, n.max[2] as f64);
     let d = (lo - p).max(p - hi).max(DVec3::ZERO);
     d.length_squared()
-}
-
-/// The distance from `p` to the segment `a b` (a point when `a == b`).
-pub fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
-    let ab = b - a;
-    let t = if ab.length_squared() > 0.0 {
-        ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a + ab * t).distance(p)
-}
-
-/// The point of triangle `a b c` closest to `p`, and its barycentric weights, by the
-/// Voronoi-region case analysis (Ericson, *Real-Time Collision Detection*, §5.1.5): every
-/// corner and edge region is tested before the interior, so a degenerate triangle still
-/// gives a point on it.
-pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DVec3) {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return (a, DVec3::X);
-    }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return (b, DVec3::Y);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return (a + ab * v, DVec3::new(1.0 - v, v, 0.0));
-    }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return (c, DVec3::Z);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return (a + ac * w, DVec3::new(1.0 - w, 0.0, w));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (b + (c - b) * w, DVec3::new(0.0, 1.0 - w, w));
-    }
-    let denom = va + vb + vc;
-    if denom.abs() <= f64::MIN_POSITIVE || !denom.is_finite() {
-        // Only reachable for a degenerate triangle that slipped through: its corner a.
-        return (a, DVec3::X);
-    }
-    let v = vb / denom;
-    let w = vc / denom;
-    (a + ab * v + ac * w, DVec3::new(1.0 - v - w, v, w))
 }
 
 #[cfg(test)]
