@@ -278,8 +278,10 @@ pub fn process_scan_with_options(
     crate::memory::release_freed();
     let mut input_files = vec![input_hash?];
     for material in &mesh.materials {
-        // Each distinct file once, however many materials name it.
+        // Each distinct file once, however many materials name it; an embedded image is
+        // part of the scan's file, already hashed.
         if let Some(texture) = &material.diffuse_texture
+            && texture.embedded.is_none()
             && !input_files.iter().any(|f| f.path == texture.path)
         {
             input_files.push(hash_input(&texture.path)?);

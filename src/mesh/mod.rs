@@ -23,6 +23,6 @@ pub use build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 pub use error::{Location, MeshError};
 pub use io::{SaveOptions, load, save, save_reserving};
 pub use limits::InputLimits;
-pub use model::{Index, MapFile, Material, Mesh, Texture, Wedge};
+pub use model::{EmbeddedImage, Index, MapFile, Material, Mesh, Texture, Wedge};
 pub use summary::MeshSummary;
 pub use topology::{BoundaryChain, EdgeKind, OrderedRing, RingBuffers, Topology, TopologyCounts};

@@ -13,7 +13,8 @@
 //! the material's base-colour texture when it is a file beside the scan. Errors, not guesses:
 //! a required extension (Draco, mesh quantization, ...), sparse accessors, primitive modes
 //! other than triangles. Skipped with a note: other attributes (tangents, colours, skins,
-//! morph targets), images embedded in the file (the model keeps textures as files).
+//! morph targets). An image inside the file (GLB buffer view, `data:` URI) is kept in memory
+//! as it came ([`crate::mesh::Texture::embedded`]).
 
 use super::accessor::{self, Buffers};
 use super::glb;
@@ -21,7 +22,7 @@ use crate::mesh::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 use crate::mesh::error::{Location, MeshError, Result};
 use crate::mesh::files;
 use crate::mesh::limits::Limit;
-use crate::mesh::model::{Index, Material, Mesh, Texture};
+use crate::mesh::model::{EmbeddedImage, Index, Material, Mesh, Texture};
 use crate::mesh::texture;
 use base64::Engine;
 use glam::{DMat3, DMat4, DVec2, DVec3};
@@ -215,7 +216,6 @@ fn load_materials(
     report: &mut LoadReport,
 ) -> Result<Vec<Material>> {
     let mut materials: Vec<Material> = Vec::new();
-    let mut embedded = 0usize;
     for m in document.materials() {
         let name = m
             .name()
@@ -233,29 +233,21 @@ fn load_materials(
                     info.tex_coord()
                 ));
             }
-            match info.texture().source().source() {
+            let image = info.texture().source();
+            material.diffuse_texture = match image.source() {
                 gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
                     let file = resolve_beside(path, uri, options, "image")?;
-                    material.diffuse_texture = Some(Texture {
+                    Some(Texture {
                         name: texture::normalise_name(&percent_decode(uri).unwrap_or_default()),
                         path: file,
                         size: None,
-                    });
+                        embedded: None,
+                    })
                 }
-                gltf::image::Source::View { view, .. } => {
-                    accessor::view_bytes(&view, buffers)
-                        .map_err(|m| malformed(path, format!("image: {m}")))?;
-                    embedded += 1;
-                }
-                gltf::image::Source::Uri { .. } => embedded += 1,
-            }
+                source => embedded_texture(path, &image, source, buffers, options, report)?,
+            };
         }
         materials.push(material);
-    }
-    if embedded > 0 {
-        report.skipped.push(format!(
-            "{embedded} embedded base-colour images (scanmill keeps textures as files)"
-        ));
     }
     if document
         .meshes()
@@ -282,11 +274,7 @@ fn check_textures(
     let images: Vec<texture::ImageRef> = materials
         .iter()
         .filter_map(|m| m.diffuse_texture.as_ref())
-        .map(|t| texture::ImageRef {
-            path: &t.path,
-            name: &t.name,
-            referrer: path,
-        })
+        .map(|t| texture::ImageRef::of(t, path))
         .collect();
     let checked = texture::check_images(&images, &options.limits)?;
     report.decoded_textures = checked.decoded;
@@ -297,6 +285,56 @@ fn check_textures(
         t.size = checked.sizes.get(&t.path).copied();
     }
     Ok(())
+}
+
+/// A texture whose image is inside the file (a buffer view or a `data:` URI): its bytes as
+/// they are, named `<file>#image<N>`. An image that is neither PNG nor JPEG is left out with
+/// a note.
+fn embedded_texture(
+    path: &Path,
+    image: &gltf::Image,
+    source: gltf::image::Source,
+    buffers: &Buffers,
+    options: &LoadOptions,
+    report: &mut LoadReport,
+) -> Result<Option<Texture>> {
+    let at = |m: String| malformed(path, format!("image {}: {m}", image.index()));
+    let bytes: Vec<u8> = match source {
+        gltf::image::Source::View { view, .. } => {
+            accessor::view_bytes(&view, buffers).map_err(at)?.to_vec()
+        }
+        gltf::image::Source::Uri { uri, .. } => {
+            decode_data_uri(path, uri, options.limits.max_file_bytes).map_err(at)?
+        }
+    };
+    let extension = if bytes.starts_with(b"\x89PNG") {
+        "png"
+    } else if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        "jpg"
+    } else {
+        report
+            .skipped
+            .push(format!("image {}: neither PNG nor JPEG", image.index()));
+        return Ok(None);
+    };
+    let stem = image
+        .name()
+        .map(|n| {
+            let lower = n.to_ascii_lowercase();
+            let known = [".png", ".jpg", ".jpeg"]
+                .iter()
+                .find(|e| lower.ends_with(*e));
+            n[..n.len() - known.map_or(0, |e| e.len())].to_string()
+        })
+        .unwrap_or_else(|| format!("image{}", image.index()));
+    let mut virtual_path = path.as_os_str().to_owned();
+    virtual_path.push(format!("#image{}", image.index()));
+    Ok(Some(Texture {
+        name: format!("{stem}.{extension}"),
+        path: virtual_path.into(),
+        size: None,
+        embedded: Some(EmbeddedImage(bytes.into())),
+    }))
 }
 
 /// The meshes to read with their world transforms: the default scene's (or the first

@@ -14,9 +14,9 @@
 
 use super::glb;
 use crate::mesh::error::{MeshError, Result};
-use crate::mesh::files;
-use crate::mesh::limits::{InputLimits, Limit};
+use crate::mesh::limits::InputLimits;
 use crate::mesh::model::{Index, Mesh, Texture};
+use crate::mesh::texture;
 use serde_json::{Value, json};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -184,14 +184,15 @@ fn image_index(
     if let Some((_, i)) = image_of.iter().find(|(p, _)| *p == t.path) {
         return Ok(Some(*i));
     }
-    let limits = InputLimits::default();
-    let bytes = files::read_whole(&t.path, limits.max_file_bytes, Limit::FileBytes)?;
+    let bytes = texture::texture_bytes(t, &InputLimits::default())?;
     let Some(mime) = mime_type(&bytes) else {
         tracing::warn!(texture = %t.name, "GLB output: the texture is neither PNG nor JPEG; left out");
         return Ok(None);
     };
     let view = b.view(&bytes, None);
-    images.push(json!({ "bufferView": view, "mimeType": mime }));
+    // The name is the texture's file name, so that a reader can name the file it extracts.
+    let name = t.name.rsplit('/').next().unwrap_or(&t.name);
+    images.push(json!({ "bufferView": view, "mimeType": mime, "name": name }));
     image_of.push((t.path.clone(), images.len() - 1));
     Ok(Some(images.len() - 1))
 }
