@@ -104,7 +104,7 @@ fn load_buffers(
                 .ok_or_else(|| at("refers to the GLB's binary chunk, which the file lacks".into()))?
                 .to_vec(),
             gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                decode_data_uri(path, uri, cap - total).map_err(at)?
+                decode_data_uri(path, uri, total, cap).map_err(at)?
             }
             gltf::buffer::Source::Uri(uri) => read_beside(path, uri, options, "buffer")?,
         };
@@ -134,22 +134,23 @@ fn load_buffers(
     Ok(buffers)
 }
 
-/// Decodes a base64 `data:` URI whose decoded size (known from its length) is within
-/// `room` bytes.
-fn decode_data_uri(path: &Path, uri: &str, room: u64) -> std::result::Result<Vec<u8>, String> {
+/// Decodes a base64 `data:` URI, refusing it before decoding (its decoded size is known from
+/// its length) if it would bring the buffers read so far, `before` bytes, above `cap`.
+fn decode_data_uri(
+    path: &Path,
+    uri: &str,
+    before: u64,
+    cap: u64,
+) -> std::result::Result<Vec<u8>, String> {
     let (head, payload) = uri.split_once(',').ok_or("data URI without a comma")?;
     if !head.ends_with(";base64") {
         return Err("only base64 data URIs are supported".into());
     }
     let decoded_size = payload.len() as u64 / 4 * 3;
-    if decoded_size > room {
-        return Err(files::too_large(
-            path,
-            format!("data URI of about {decoded_size} bytes"),
-            Limit::FileBytes,
-            room,
-        )
-        .to_string());
+    if before.saturating_add(decoded_size) > cap {
+        let what =
+            format!("a data URI of about {decoded_size} bytes after {before} bytes of buffers");
+        return Err(files::too_large(path, what, Limit::FileBytes, cap).to_string());
     }
     base64::engine::general_purpose::STANDARD
         .decode(payload)
@@ -304,7 +305,7 @@ fn embedded_texture(
             accessor::view_bytes(&view, buffers).map_err(at)?.to_vec()
         }
         gltf::image::Source::Uri { uri, .. } => {
-            decode_data_uri(path, uri, options.limits.max_file_bytes).map_err(at)?
+            decode_data_uri(path, uri, 0, options.limits.max_file_bytes).map_err(at)?
         }
     };
     let extension = if bytes.starts_with(b"\x89PNG") {
