@@ -81,7 +81,32 @@ fn parse_document(path: &Path, json: &[u8]) -> Result<gltf::Document> {
         };
         return Err(malformed(path, what));
     }
+    check_position_accessors(path, &root)?;
     gltf::Document::from_json(root).map_err(|e| malformed(path, format!("invalid glTF: {e}")))
+}
+
+/// Every primitive's `POSITION` names an accessor that exists. The crate's validation looks
+/// that accessor up without a range check (a panic on a hostile index, found by fuzzing), so
+/// this runs first.
+fn check_position_accessors(path: &Path, root: &gltf::json::Root) -> Result<()> {
+    let position = gltf::json::validation::Checked::Valid(Semantic::Positions);
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.get(&position)
+                && index.value() >= root.accessors.len()
+            {
+                return Err(malformed(
+                    path,
+                    format!(
+                        "mesh {m} primitive {p}: POSITION accessor {} does not exist (the file has {})",
+                        index.value(),
+                        root.accessors.len()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Every buffer's bytes: the GLB's BIN chunk, a `data:` URI or a file beside the scan. The
@@ -234,9 +259,10 @@ fn load_materials(
                     info.tex_coord()
                 ));
             }
-            let image = info.texture().source();
-            material.diffuse_texture = match image.source() {
-                gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+            let image = info.texture().source().index();
+            let at = |m: String| malformed(path, format!("image {image}: {m}"));
+            material.diffuse_texture = match image_source(document, image).map_err(at)? {
+                ImageSource::File(uri) => {
                     let file = resolve_beside(path, uri, options, "image")?;
                     Some(Texture {
                         name: texture::normalise_name(&percent_decode(uri).unwrap_or_default()),
@@ -245,7 +271,10 @@ fn load_materials(
                         embedded: None,
                     })
                 }
-                source => embedded_texture(path, &image, source, buffers, options, report)?,
+                source => {
+                    let name = document.images().nth(image).and_then(|i| i.name());
+                    embedded_texture(path, (image, name), source, buffers, options, report)?
+                }
             };
         }
         materials.push(material);
@@ -288,25 +317,56 @@ fn check_textures(
     Ok(())
 }
 
+/// Where an image's bytes are.
+enum ImageSource<'a> {
+    /// A file beside the scan (a relative URI).
+    File(&'a str),
+    /// A `data:` URI.
+    Data(&'a str),
+    View(gltf::buffer::View<'a>),
+}
+
+/// Image `index`'s source, read from the JSON: the crate's `Image::source` unwraps a missing
+/// `uri`, `bufferView` or `mimeType` (panics on hostile input, found by fuzzing).
+fn image_source(
+    document: &gltf::Document,
+    index: usize,
+) -> std::result::Result<ImageSource<'_>, String> {
+    let json = document
+        .as_json()
+        .images
+        .get(index)
+        .ok_or("does not exist")?;
+    match (&json.uri, json.buffer_view) {
+        (Some(uri), None) if uri.starts_with("data:") => Ok(ImageSource::Data(uri)),
+        (Some(uri), None) => Ok(ImageSource::File(uri)),
+        (None, Some(view)) => document
+            .views()
+            .nth(view.value())
+            .map(ImageSource::View)
+            .ok_or_else(|| format!("buffer view {} does not exist", view.value())),
+        _ => Err("an image needs exactly one of uri and bufferView".into()),
+    }
+}
+
 /// A texture whose image is inside the file (a buffer view or a `data:` URI): its bytes as
 /// they are, named `<file>#image<N>`. An image that is neither PNG nor JPEG is left out with
 /// a note.
 fn embedded_texture(
     path: &Path,
-    image: &gltf::Image,
-    source: gltf::image::Source,
+    (image, name): (usize, Option<&str>),
+    source: ImageSource,
     buffers: &Buffers,
     options: &LoadOptions,
     report: &mut LoadReport,
 ) -> Result<Option<Texture>> {
-    let at = |m: String| malformed(path, format!("image {}: {m}", image.index()));
+    let at = |m: String| malformed(path, format!("image {image}: {m}"));
     let bytes: Vec<u8> = match source {
-        gltf::image::Source::View { view, .. } => {
-            accessor::view_bytes(&view, buffers).map_err(at)?.to_vec()
-        }
-        gltf::image::Source::Uri { uri, .. } => {
+        ImageSource::View(view) => accessor::view_bytes(&view, buffers).map_err(at)?.to_vec(),
+        ImageSource::Data(uri) => {
             decode_data_uri(path, uri, 0, options.limits.max_file_bytes).map_err(at)?
         }
+        ImageSource::File(_) => return Ok(None),
     };
     let extension = if bytes.starts_with(b"\x89PNG") {
         "png"
@@ -315,11 +375,10 @@ fn embedded_texture(
     } else {
         report
             .skipped
-            .push(format!("image {}: neither PNG nor JPEG", image.index()));
+            .push(format!("image {image}: neither PNG nor JPEG"));
         return Ok(None);
     };
-    let stem = image
-        .name()
+    let stem = name
         .map(|n| {
             let lower = n.to_ascii_lowercase();
             let known = [".png", ".jpg", ".jpeg"]
@@ -327,9 +386,9 @@ fn embedded_texture(
                 .find(|e| lower.ends_with(*e));
             n[..n.len() - known.map_or(0, |e| e.len())].to_string()
         })
-        .unwrap_or_else(|| format!("image{}", image.index()));
+        .unwrap_or_else(|| format!("image{image}"));
     let mut virtual_path = path.as_os_str().to_owned();
-    virtual_path.push(format!("#image{}", image.index()));
+    virtual_path.push(format!("#image{image}"));
     Ok(Some(Texture {
         name: format!("{stem}.{extension}"),
         path: virtual_path.into(),
