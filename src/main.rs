@@ -188,7 +188,9 @@ fn run_process(
     }
     // The mesh files come last, one per format.
     let files = &result.output.files;
-    let meshes = &files[files.len().saturating_sub(recipe.output.format.list().len())..];
+    let meshes = &files[files
+        .len()
+        .saturating_sub(recipe.output.format.list().len())..];
     let main_file = meshes
         .iter()
         .map(|f| f.path.display().to_string())

@@ -44,7 +44,7 @@ pub fn read(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<(Mesh, L
         "gltf"
     };
     let mut b = MeshBuilder::new(path, format);
-    let buffers = load_buffers(path, &document, bin, options, &mut b.report)?;
+    let buffers = load_buffers(path, &document, bin, options)?;
     let materials = load_materials(path, &document, &buffers, options, &mut b.report)?;
     let has_materials = !materials.is_empty();
     b.materials = materials;
@@ -117,7 +117,6 @@ fn load_buffers(
     document: &gltf::Document,
     bin: Option<&[u8]>,
     options: &LoadOptions,
-    report: &mut LoadReport,
 ) -> Result<Vec<Vec<u8>>> {
     let cap = options.limits.max_file_bytes;
     let mut total = 0u64;
@@ -129,7 +128,7 @@ fn load_buffers(
                 .ok_or_else(|| at("refers to the GLB's binary chunk, which the file lacks".into()))?
                 .to_vec(),
             gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
-                decode_data_uri(path, uri, total, cap).map_err(at)?
+                decode_data_uri(uri, total, cap).map_err(at)?
             }
             gltf::buffer::Source::Uri(uri) => read_beside(path, uri, options, "buffer")?,
         };
@@ -151,31 +150,22 @@ fn load_buffers(
         }
         buffers.push(bytes);
     }
-    if document.buffers().len() > 1 {
-        report
-            .skipped
-            .push(format!("{} buffers read", document.buffers().len()));
-    }
     Ok(buffers)
 }
 
 /// Decodes a base64 `data:` URI, refusing it before decoding (its decoded size is known from
 /// its length) if it would bring the buffers read so far, `before` bytes, above `cap`.
-fn decode_data_uri(
-    path: &Path,
-    uri: &str,
-    before: u64,
-    cap: u64,
-) -> std::result::Result<Vec<u8>, String> {
+fn decode_data_uri(uri: &str, before: u64, cap: u64) -> std::result::Result<Vec<u8>, String> {
     let (head, payload) = uri.split_once(',').ok_or("data URI without a comma")?;
     if !head.ends_with(";base64") {
         return Err("only base64 data URIs are supported".into());
     }
     let decoded_size = payload.len() as u64 / 4 * 3;
     if before.saturating_add(decoded_size) > cap {
-        let what =
-            format!("a data URI of about {decoded_size} bytes after {before} bytes of buffers");
-        return Err(files::too_large(path, what, Limit::FileBytes, cap).to_string());
+        return Err(format!(
+            "a data URI of about {decoded_size} bytes after {before} bytes of buffers exceeds {} = {cap}",
+            Limit::FileBytes
+        ));
     }
     base64::engine::general_purpose::STANDARD
         .decode(payload)
@@ -364,7 +354,7 @@ fn embedded_texture(
     let bytes: Vec<u8> = match source {
         ImageSource::View(view) => accessor::view_bytes(&view, buffers).map_err(at)?.to_vec(),
         ImageSource::Data(uri) => {
-            decode_data_uri(path, uri, 0, options.limits.max_file_bytes).map_err(at)?
+            decode_data_uri(uri, 0, options.limits.max_file_bytes).map_err(at)?
         }
         ImageSource::File(_) => return Ok(None),
     };
