@@ -6,8 +6,8 @@
 //! Which encoding: a binary STL is an 80-byte header, a little-endian `u32` triangle count
 //! and 50 bytes per triangle, so its size is known from its count. A file whose size is
 //! exactly that is binary, whatever its header says (several exporters begin a binary header
-//! with `solid`); a file that begins with `solid` otherwise is ASCII; anything else is a
-//! binary STL whose count and size disagree, an error naming both.
+//! with `solid`); a file that begins with `solid` and is text otherwise is ASCII; anything
+//! else is a binary STL whose count and size disagree, an error naming both.
 //!
 //! Not used, with a note in the load report: facet normals (recomputed by the `normals` step
 //! where a recipe wants them; per-facet normals would split every vertex) and the per-facet
@@ -32,9 +32,20 @@ pub fn read(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<(Mesh, L
 pub fn parse(path: &Path, bytes: &[u8]) -> Result<MeshBuilder> {
     match binary_count(bytes) {
         Some(count) => parse_binary(path, bytes, count),
-        None if bytes.trim_ascii_start().starts_with(b"solid") => parse_ascii(path, bytes),
+        None if looks_ascii(bytes) => parse_ascii(path, bytes),
         None => Err(count_mismatch(path, bytes)),
     }
+}
+
+/// An ASCII STL begins with `solid` and is text: a binary STL whose header happens to begin
+/// with `solid` shows binary bytes (its count, its floats) within its first 512 bytes, and a
+/// truncated one is then reported as a binary STL whose count and size disagree.
+fn looks_ascii(bytes: &[u8]) -> bool {
+    bytes.trim_ascii_start().starts_with(b"solid")
+        && bytes
+            .iter()
+            .take(512)
+            .all(|&b| b.is_ascii_graphic() || b.is_ascii_whitespace())
 }
 
 /// The triangle count of a binary STL whose size agrees with it.
@@ -293,6 +304,13 @@ mod tests {
         let e = load(&bytes).unwrap_err().to_string();
         assert!(
             e.contains("declares 7 triangles (434 bytes) but the file has 134 bytes"),
+            "{e}"
+        );
+        // Cut short, a binary file whose header begins with `solid` is still read as binary.
+        let solid = binary(&[[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]], 0);
+        let e = load(&solid[..100]).unwrap_err().to_string();
+        assert!(
+            e.contains("declares 1 triangles (134 bytes) but the file has 100 bytes"),
             "{e}"
         );
     }
