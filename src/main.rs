@@ -34,7 +34,7 @@ struct Cli {
 enum Command {
     /// Run one recipe on one scan, in the foreground.
     Process {
-        /// The scan: .obj (with its MTL and textures) or .ply, optionally .gz.
+        /// The scan: .obj (with its MTL and textures), .ply, .stl, .gltf or .glb, optionally .gz.
         input: PathBuf,
         /// The recipe file (TOML).
         #[arg(long)]
@@ -191,12 +191,16 @@ fn run_process(
             )
         })?;
     }
-    let main_file = result
-        .output
-        .files
-        .last()
+    // The mesh files come last, one per format.
+    let files = &result.output.files;
+    let meshes = &files[files
+        .len()
+        .saturating_sub(recipe.output.format.list().len())..];
+    let main_file = meshes
+        .iter()
         .map(|f| f.path.display().to_string())
-        .unwrap_or_default();
+        .collect::<Vec<_>>()
+        .join(", ");
     eprintln!(
         "{} → {} ({} → {} faces, {:.0} ms)",
         input.display(),

@@ -98,42 +98,50 @@ pub fn reserved_output_names(stem: &str) -> Vec<String> {
     vec![preview_file_name(stem), format!("{stem}{SIDECAR_SUFFIX}")]
 }
 
-/// Writes `mesh` into `dir` in the recipe's format; returns the files written, the main
-/// mesh file last (so that publishing moves it last). Copied textures never take one of
-/// [`reserved_output_names`].
+/// What [`write_mesh`] wrote: supporting files (MTL, texture copies), then the mesh files,
+/// one per format in the recipe's order.
+#[derive(Debug, Default)]
+pub struct Written {
+    pub supporting: Vec<PathBuf>,
+    pub meshes: Vec<PathBuf>,
+}
+
+/// Writes `mesh` into `dir` in each of the recipe's formats, as `<stem>.<format>`. Copied
+/// textures never take one of [`reserved_output_names`] nor any format's mesh or MTL name,
+/// so that the writers, which choose copy names the same way, agree on them: a texture that
+/// two formats copy is written once.
 pub fn write_mesh(
     mesh: &Mesh,
     recipe: &Recipe,
     dir: &Path,
     stem: &str,
-) -> Result<Vec<PathBuf>, ProcessError> {
-    let (extension, ply_encoding) = match recipe.output.format {
-        OutputFormat::Obj => ("obj", PlyEncoding::default()),
-        OutputFormat::Ply => (
-            "ply",
-            match recipe.output.ply_encoding {
-                PlyEncodingSpec::Ascii => PlyEncoding::Ascii,
-                PlyEncodingSpec::BinaryLittleEndian => PlyEncoding::BinaryLittleEndian,
-                PlyEncodingSpec::BinaryBigEndian => PlyEncoding::BinaryBigEndian,
-            },
-        ),
+) -> Result<Written, ProcessError> {
+    let ply_encoding = match recipe.output.ply_encoding {
+        PlyEncodingSpec::Ascii => PlyEncoding::Ascii,
+        PlyEncodingSpec::BinaryLittleEndian => PlyEncoding::BinaryLittleEndian,
+        PlyEncodingSpec::BinaryBigEndian => PlyEncoding::BinaryBigEndian,
     };
-    let main_file = dir.join(format!("{stem}.{extension}"));
-    let mut written = save_reserving(
-        mesh,
-        &main_file,
-        &SaveOptions { ply_encoding },
-        &reserved_output_names(stem),
-    )
-    .map_err(ProcessError::from_save)?;
-    written.retain(|f| *f != main_file);
-    written.push(main_file);
+    let mut reserved = reserved_output_names(stem);
+    reserved.push(format!("{stem}.mtl"));
+    reserved.extend(OutputFormat::ALL.map(|f| format!("{stem}.{}", f.name())));
+    let mut written = Written::default();
+    for format in recipe.output.format.list() {
+        let main_file = dir.join(format!("{stem}.{}", format.name()));
+        let files = save_reserving(mesh, &main_file, &SaveOptions { ply_encoding }, &reserved)
+            .map_err(ProcessError::from_save)?;
+        for file in files {
+            if file != main_file && !written.supporting.contains(&file) {
+                written.supporting.push(file);
+            }
+        }
+        written.meshes.push(main_file);
+    }
     Ok(written)
 }
 
-/// Moves every file of `staging` into `out_dir` by rename (same filesystem), supporting
-/// files first and the main mesh file (last in `files`) last, then syncs the folder, so a
-/// reader never sees a mesh whose MTL or textures are not there yet.
+/// Moves every file of `staging` into `out_dir` by rename (same filesystem), in the order of
+/// `files` (supporting files first, the mesh files last), then syncs the folder, so a reader
+/// never sees a mesh whose MTL or textures are not there yet.
 fn publish(
     staging: &Path,
     files: &[PathBuf],
@@ -273,8 +281,10 @@ pub fn process_scan_with_options(
     crate::memory::release_freed();
     let mut input_files = vec![input_hash?];
     for material in &mesh.materials {
-        // Each distinct file once, however many materials name it.
+        // Each distinct file once, however many materials name it; an embedded image is
+        // part of the scan's file, already hashed.
         if let Some(texture) = &material.diffuse_texture
+            && texture.embedded.is_none()
             && !input_files.iter().any(|f| f.path == texture.path)
         {
             input_files.push(hash_input(&texture.path)?);
@@ -309,26 +319,27 @@ pub fn process_scan_with_options(
     let write_start = Instant::now();
     let stem = output_stem(input);
     let staging = Staging::new(out_dir)?;
-    let mut written = write_mesh(&mesh, recipe, &staging.0, &stem)?;
+    let Written { supporting, meshes } = write_mesh(&mesh, recipe, &staging.0, &stem)?;
     let preview = preview.and_then(|preview| {
         let path = staging.0.join(preview_file_name(&stem));
         match crate::preview::write_png(&preview.image, &path) {
-            Ok(()) => {
-                // Before the main mesh file, which is published last.
-                written.insert(written.len() - 1, path);
-                Some(preview.figures)
-            }
+            Ok(()) => Some((path, preview.figures)),
             Err(e) => {
                 tracing::warn!(error = %e, "no preview");
                 None
             }
         }
     });
-    let mut published = publish(&staging.0, &written, out_dir)?;
+    // Supporting files and the preview first, the mesh files last.
+    let mut files = supporting;
+    files.extend(preview.iter().map(|(path, _)| path.clone()));
+    files.extend(meshes);
+    let mut published = publish(&staging.0, &files, out_dir)?;
     drop(staging);
     let preview = match preview {
-        Some(figures) => {
-            let path = published.remove(published.len() - 2);
+        Some((staged, figures)) => {
+            let index = files.iter().position(|f| *f == staged).unwrap_or_default();
+            let path = published.remove(index);
             Some(PreviewReport {
                 file: FileHash::of(&path).map_err(|e| output_error(&path, e))?,
                 figures,

@@ -20,6 +20,7 @@ fn scan(rel: &str, texture: Option<&str>) -> Mesh {
                 name: t.into(),
                 path: dir.join(t),
                 size: None,
+                embedded: None,
             }),
             ..Default::default()
         }];

@@ -410,6 +410,51 @@ const TOML_WORDS: &[&str] = &[
     "'",
 ];
 
+/// Lines spliced into STL inputs.
+const STL_LINES: &[&str] = &[
+    "solid x",
+    "endsolid x",
+    "facet normal 0 0 1",
+    "outer loop",
+    "vertex 0 0 0",
+    "vertex nan 0 0",
+    "vertex 1e39 0 0",
+    "vertex 1 2",
+    "endloop",
+    "endfacet",
+];
+
+/// Tokens spliced into glTF JSON (and the JSON chunk of a GLB): keys, the values that
+/// matter, and URIs that leave the folder or name special files.
+const GLTF_WORDS: &[&str] = &[
+    "\"count\": 4294967295",
+    "\"count\": 0",
+    "\"byteOffset\": 18446744073709551615",
+    "\"byteStride\": 4",
+    "\"byteLength\": 9999999999",
+    "\"componentType\": 5121",
+    "\"componentType\": 5125",
+    "\"type\": \"VEC2\"",
+    "\"mode\": 0",
+    "\"mode\": 5",
+    "\"normalized\": true",
+    "\"sparse\": {}",
+    "\"extensionsRequired\": [\"KHR_draco_mesh_compression\"]",
+    "\"uri\": \"../../../etc/passwd\"",
+    "\"uri\": \"/etc/passwd\"",
+    "\"uri\": \"scan%2F..%2F..%2Fsecret\"",
+    "\"uri\": \"fifo.png\"",
+    "\"uri\": \"tex.png\"",
+    "\"uri\": \"data:application/octet-stream;base64,AAAA\"",
+    "\"uri\": \"data:,x\"",
+    "\"bufferView\": 0",
+    "\"source\": 0",
+    "\"material\": 0",
+    "\"matrix\": [0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0]",
+    "\"scale\": [-1, 1, 1]",
+    "\"children\": [0]",
+];
+
 impl Generator {
     pub fn new(target: Target, seed: u64, corpus: Vec<Entry>) -> Generator {
         let (mut lines, mut words): (Vec<&str>, Vec<&str>) = match target {
@@ -422,6 +467,8 @@ impl Generator {
                 (l, PLY_TYPES.to_vec())
             }
             Target::Recipe | Target::Config => (TOML_LINES.to_vec(), TOML_WORDS.to_vec()),
+            Target::Stl => (STL_LINES.to_vec(), Vec::new()),
+            Target::Gltf | Target::Glb => (GLTF_WORDS.to_vec(), GLTF_WORDS.to_vec()),
             Target::SelfTest => (Vec::new(), Vec::new()),
         };
         words.extend(NUMBERS);

@@ -60,13 +60,19 @@ pub enum Target {
     Gzip,
     Recipe,
     Config,
+    /// STL, ASCII or binary (issue #28).
+    Stl,
+    /// glTF as JSON, buffers and images in `data:` URIs or files of the scan folder.
+    Gltf,
+    /// Binary glTF.
+    Glb,
     /// Inputs that misbehave on purpose (`panic`, `abort`, `hang`, `oom`, `escape`): the tests
     /// check with it that the oracle sees each kind of finding. Not part of `all`.
     SelfTest,
 }
 
 impl Target {
-    pub const ALL: [Target; 7] = [
+    pub const ALL: [Target; 10] = [
         Target::Obj,
         Target::Mtl,
         Target::PlyAscii,
@@ -74,6 +80,9 @@ impl Target {
         Target::Gzip,
         Target::Recipe,
         Target::Config,
+        Target::Stl,
+        Target::Gltf,
+        Target::Glb,
     ];
 
     pub fn name(self) -> &'static str {
@@ -85,6 +94,9 @@ impl Target {
             Target::Gzip => "gzip",
             Target::Recipe => "recipe",
             Target::Config => "config",
+            Target::Stl => "stl",
+            Target::Gltf => "gltf",
+            Target::Glb => "glb",
             Target::SelfTest => "self-test",
         }
     }
@@ -104,6 +116,9 @@ impl Target {
             Target::PlyAscii | Target::PlyBinary => "ply",
             Target::Gzip => "gz",
             Target::Recipe | Target::Config => "toml",
+            Target::Stl => "stl",
+            Target::Gltf => "gltf",
+            Target::Glb => "glb",
             Target::SelfTest => "txt",
         }
     }
@@ -498,6 +513,9 @@ pub fn run_one(target: Target, scratch: &Scratch, input: &[u8]) -> Verdict {
             };
             load_mesh(scratch, name, input)
         }
+        Target::Stl => load_mesh(scratch, "scan.stl", input),
+        Target::Gltf => load_mesh(scratch, "scan.gltf", input),
+        Target::Glb => load_mesh(scratch, "scan.glb", input),
         Target::Mtl => load_mtl(scratch, input),
         Target::Recipe => recipe(scratch, input),
         Target::Config => config(scratch, input),
@@ -540,7 +558,7 @@ fn load_mesh(s: &Scratch, name: &str, input: &[u8]) -> Verdict {
         return v;
     }
     let verdict = match mesh::io::load(&path, &LoadOptions::default()) {
-        Ok((mesh, _report)) => check_loaded(s, &mesh, name.contains(".ply")),
+        Ok((mesh, _report)) => check_loaded(s, &mesh, writers_for(name)),
         Err(e) => Verdict::Refused(e.to_string()),
     };
     let _ = std::fs::remove_file(&path);
@@ -614,20 +632,27 @@ fn textures_inside<'a>(
     None
 }
 
+/// The outputs a loaded input is written to: OBJ always, and the input's own format where
+/// scanmill writes it.
+fn writers_for(input: &str) -> &'static [&'static str] {
+    if input.contains(".ply") {
+        &["scan.obj", "scan.ply"]
+    } else if input.contains(".gl") {
+        &["scan.obj", "scan.glb"]
+    } else {
+        &["scan.obj"]
+    }
+}
+
 /// After a successful load: textures inside the scan folder; and, for small meshes, the
 /// writers copy nothing from outside and write nothing outside the output folder.
-fn check_loaded(s: &Scratch, mesh: &Mesh, ply: bool) -> Verdict {
+fn check_loaded(s: &Scratch, mesh: &Mesh, names: &[&str]) -> Verdict {
     if let Some(escape) = textures_inside(s, mesh.materials.iter()) {
         return escape;
     }
     if mesh.triangles.len() > SAVE_MAX_TRIANGLES {
         return Verdict::Accepted;
     }
-    let names: &[&str] = if ply {
-        &["scan.obj", "scan.ply"]
-    } else {
-        &["scan.obj"]
-    };
     for name in names {
         let _ = std::fs::remove_dir_all(&s.out);
         if let Err(e) = std::fs::create_dir_all(&s.out) {

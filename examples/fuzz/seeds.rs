@@ -33,6 +33,9 @@ pub fn hand_made(target: Target) -> Vec<Seed> {
         Target::Gzip => gzip_seeds(),
         Target::Recipe => recipe_seeds(),
         Target::Config => config_seeds(),
+        Target::Stl => stl_seeds(),
+        Target::Gltf => gltf_seeds(),
+        Target::Glb => glb_seeds(),
         Target::SelfTest => Vec::new(),
     }
 }
@@ -633,6 +636,9 @@ fn belongs(target: Target, path: &Path) -> bool {
         Target::PlyAscii => name.ends_with(".ply") && ply_format(),
         Target::PlyBinary => name.ends_with(".ply") && !ply_format(),
         Target::Gzip => name.ends_with(".obj.gz") || name.ends_with(".ply.gz"),
+        Target::Stl => name.ends_with(".stl"),
+        Target::Gltf => name.ends_with(".gltf"),
+        Target::Glb => name.ends_with(".glb"),
         Target::Recipe | Target::Config | Target::SelfTest => false,
     }
 }
@@ -695,4 +701,157 @@ fn adapt_mtl(bytes: &[u8]) -> Vec<u8> {
         }
     }
     out.into_bytes()
+}
+
+const STL_ASCII: &str = "solid t\nfacet normal 0 0 -1\nouter loop\nvertex 0 0 0\nvertex 0 1 0\nvertex 1 0 0\nendloop\nendfacet\n\
+facet normal 0 -1 0\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 0 1\nendloop\nendfacet\n\
+facet normal 1 1 1\nouter loop\nvertex 1 0 0\nvertex 0 1 0\nvertex 0 0 1\nendloop\nendfacet\nendsolid t\n";
+
+fn binary_stl(header: &[u8], facets: &[[f32; 9]], attribute: u16) -> Vec<u8> {
+    let mut out = header.to_vec();
+    out.resize(80, b' ');
+    out.extend_from_slice(&(facets.len() as u32).to_le_bytes());
+    for f in facets {
+        out.extend_from_slice(&[0u8; 12]);
+        f.iter()
+            .for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
+        out.extend_from_slice(&attribute.to_le_bytes());
+    }
+    out
+}
+
+fn stl_seeds() -> Vec<Seed> {
+    let facets = [
+        [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+        [1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0],
+        [0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+    ];
+    let mut lying = binary_stl(b"x", &facets, 0);
+    lying[80..84].copy_from_slice(&u32::MAX.to_le_bytes());
+    vec![
+        seed("ascii", STL_ASCII),
+        seed("binary", binary_stl(b"binary", &facets, 0)),
+        seed(
+            "binary-says-solid",
+            binary_stl(b"solid colour", &facets, 0x801f),
+        ),
+        seed("lying-count", lying),
+        seed("two-solids", format!("{STL_ASCII}{STL_ASCII}")),
+    ]
+}
+
+/// A one-triangle glTF document: positions, texture coordinates and indices in buffer 0
+/// (`uri`, or the GLB's BIN chunk when `None`), and a material whose image is `image`.
+fn gltf_doc(uri: Option<&str>, image: serde_json::Value) -> (Vec<u8>, Vec<u8>) {
+    let mut bin: Vec<u8> = [0f32, 0., 0., 1., 0., 0., 0., 1., 0.]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    bin.extend(
+        [0f32, 0., 1., 0., 0., 1.]
+            .iter()
+            .flat_map(|v| v.to_le_bytes()),
+    );
+    bin.extend([0u16, 1, 2, 0].iter().flat_map(|i| i.to_le_bytes()));
+    let mut buffer = serde_json::json!({ "byteLength": bin.len() });
+    if let Some(uri) = uri {
+        buffer["uri"] = serde_json::json!(uri);
+    }
+    let doc = serde_json::json!({
+        "asset": { "version": "2.0" },
+        "scene": 0, "scenes": [{ "nodes": [0] }],
+        "nodes": [{ "children": [1], "scale": [2, 2, 2] }, { "mesh": 0, "translation": [1, 0, 0] }],
+        "meshes": [{ "primitives": [{
+            "attributes": { "POSITION": 0, "TEXCOORD_0": 1 }, "indices": 2, "material": 0 }] }],
+        "materials": [{ "pbrMetallicRoughness": { "baseColorTexture": { "index": 0 } } }],
+        "textures": [{ "source": 0 }],
+        "images": [image],
+        "accessors": [
+            { "bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+              "min": [0, 0, 0], "max": [1, 1, 0] },
+            { "bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2" },
+            { "bufferView": 2, "componentType": 5123, "count": 3, "type": "SCALAR" },
+        ],
+        "bufferViews": [
+            { "buffer": 0, "byteOffset": 0, "byteLength": 36 },
+            { "buffer": 0, "byteOffset": 36, "byteLength": 24 },
+            { "buffer": 0, "byteOffset": 60, "byteLength": 6 },
+        ],
+        "buffers": [buffer],
+    });
+    (serde_json::to_vec_pretty(&doc).unwrap(), bin)
+}
+
+fn data_uri(bytes: &[u8]) -> String {
+    use base64::Engine;
+    let b64 = base64::engine::general_purpose::STANDARD.encode(bytes);
+    format!("data:application/octet-stream;base64,{b64}")
+}
+
+/// A tiny PNG (2×2).
+fn tiny_png() -> Vec<u8> {
+    let img = image::RgbImage::from_pixel(2, 2, image::Rgb([9, 8, 7]));
+    let mut out = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+    out.into_inner()
+}
+
+fn gltf_seeds() -> Vec<Seed> {
+    let (_, bin) = gltf_doc(None, serde_json::json!({}));
+    let inline = data_uri(&bin);
+    let png = format!("data:image/png;base64,{}", &data_uri(&tiny_png())[37..]);
+    let doc = |uri: &str, image: serde_json::Value| gltf_doc(Some(uri), image).0;
+    vec![
+        seed(
+            "file-image",
+            doc(&inline, serde_json::json!({ "uri": "tex.png" })),
+        ),
+        seed(
+            "data-image",
+            doc(&inline, serde_json::json!({ "uri": png })),
+        ),
+        seed(
+            "escape-image",
+            doc(&inline, serde_json::json!({ "uri": "../secret.png" })),
+        ),
+        seed(
+            "symlink-image",
+            doc(&inline, serde_json::json!({ "uri": "link.png" })),
+        ),
+        seed(
+            "fifo-buffer",
+            doc("fifo.png", serde_json::json!({ "uri": "tex.png" })),
+        ),
+        seed(
+            "escape-buffer",
+            doc("..%2Fsecret.png", serde_json::json!({ "uri": "tex.png" })),
+        ),
+    ]
+}
+
+fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    scanmill::mesh::gltf::glb::write(&mut out, json, bin).unwrap();
+    out
+}
+
+fn glb_seeds() -> Vec<Seed> {
+    let (json, mut bin) = gltf_doc(None, serde_json::json!({}));
+    let image_at = bin.len();
+    let png = tiny_png();
+    bin.extend_from_slice(&png);
+    let mut doc: serde_json::Value = serde_json::from_slice(&json).unwrap();
+    doc["bufferViews"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({ "buffer": 0, "byteOffset": image_at, "byteLength": png.len() }));
+    doc["images"] = serde_json::json!([{ "bufferView": 3, "mimeType": "image/png" }]);
+    doc["buffers"][0]["byteLength"] = serde_json::json!(bin.len());
+    let embedded = serde_json::to_vec(&doc).unwrap();
+    let (file_image, plain_bin) = gltf_doc(None, serde_json::json!({ "uri": "tex.png" }));
+    vec![
+        seed("embedded-image", glb(&embedded, &bin)),
+        seed("file-image", glb(&file_image, &plain_bin)),
+        seed("no-bin", glb(&file_image, &[])),
+    ]
 }

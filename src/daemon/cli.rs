@@ -412,6 +412,9 @@ fn write_history_text(rows: &[HistoryRow], out: &mut dyn Write) -> std::io::Resu
     for r in rows {
         let detail = match (&r.output, &r.error) {
             (_, Some(e)) => format!("{}  ! {}", r.input, e),
+            (Some(o), None) if !r.outputs.is_empty() => {
+                format!("{}  -> {} ({})", r.input, o, r.outputs.join(", "))
+            }
             (Some(o), None) => format!("{}  -> {}", r.input, o),
             (None, None) => r.input.clone(),
         };

@@ -70,8 +70,8 @@ pub fn is_ignored_name(name: &str) -> bool {
         .any(|s| lower.ends_with(s))
 }
 
-/// The kind of scan a file name starts, if any (anchored at the end: `.obj`, `.obj.gz`,
-/// `.ply`, `.ply.gz`, any case).
+/// The kind of scan a file name starts, if any (anchored at the end: `.obj`, `.ply`,
+/// `.stl`, `.glb`, each optionally `.gz`, any case).
 pub fn primary_kind(name: &str) -> Option<PrimaryKind> {
     let lower = name.to_ascii_lowercase();
     let base = lower.strip_suffix(".gz").unwrap_or(&lower);
@@ -79,6 +79,8 @@ pub fn primary_kind(name: &str) -> Option<PrimaryKind> {
         Some(PrimaryKind::Obj)
     } else if base.ends_with(".ply") && base.len() > 4 {
         Some(PrimaryKind::Ply)
+    } else if (base.ends_with(".stl") || base.ends_with(".glb")) && base.len() > 4 {
+        Some(PrimaryKind::SelfContained)
     } else {
         None
     }
@@ -88,6 +90,10 @@ pub fn primary_kind(name: &str) -> Option<PrimaryKind> {
 pub enum PrimaryKind {
     Obj,
     Ply,
+    /// STL and GLB: one file holds the whole scan (a GLB its textures too), so the set is the
+    /// file alone. (A `.gltf` names buffers and images beside it, whose arrival the watcher
+    /// would have to follow; it is read by `scanmill process` and `inspect`, not watched.)
+    SelfContained,
 }
 
 /// The include/exclude filter of one watched folder.
@@ -155,6 +161,9 @@ mod tests {
         assert_eq!(primary_kind("a.OBJ"), Some(PrimaryKind::Obj));
         assert_eq!(primary_kind("a.ply.gz"), Some(PrimaryKind::Ply));
         assert_eq!(primary_kind("a.obj.mtl"), None);
+        assert_eq!(primary_kind("a.STL"), Some(PrimaryKind::SelfContained));
+        assert_eq!(primary_kind("a.glb"), Some(PrimaryKind::SelfContained));
+        assert_eq!(primary_kind("a.gltf"), None);
         assert_eq!(primary_kind(".obj"), None);
         assert!(is_ignored_name("x.PART"));
         assert!(is_ignored_name("~$x.obj"));

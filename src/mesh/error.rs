@@ -118,7 +118,7 @@ pub enum MeshError {
     #[error("{}: the file holds no usable triangles: {}", shown_path(.path), shown(.reason))]
     NoTriangles { path: PathBuf, reason: String },
     #[error(
-        "{}: not a mesh file scanmill reads (expected .obj, .ply, optionally .gz)",
+        "{}: not a mesh file scanmill reads (expected .obj, .ply, .stl, .gltf or .glb, optionally .gz)",
         shown_path(.path)
     )]
     UnknownFormat { path: PathBuf },

@@ -7,10 +7,12 @@
 use super::build::{LoadOptions, LoadReport};
 use super::error::{Location, MeshError, Result};
 use super::files;
+use super::gltf;
 use super::limits::{InputLimits, Limit};
 use super::model::Mesh;
 use super::obj;
 use super::ply::{self, PlyEncoding};
+use super::stl;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -19,6 +21,11 @@ use std::path::{Path, PathBuf};
 pub enum Format {
     Obj,
     Ply,
+    Stl,
+    /// glTF 2.0 as JSON (`.gltf`); read only.
+    Gltf,
+    /// glTF 2.0 binary (`.glb`).
+    Glb,
 }
 
 /// The format named by a path's extension (case-insensitive), looking under a `.gz`, and
@@ -32,12 +39,15 @@ pub fn format_of(path: &Path) -> Option<(Format, bool)> {
     let format = match Path::new(inner).extension()?.to_str()? {
         "obj" => Format::Obj,
         "ply" => Format::Ply,
+        "stl" => Format::Stl,
+        "gltf" => Format::Gltf,
+        "glb" => Format::Glb,
         _ => return None,
     };
     Some((format, gz))
 }
 
-/// Reads a mesh file (`.obj`, `.ply`, either optionally `.gz`). Only a regular file is
+/// Reads a mesh file (`.obj`, `.ply`, `.stl`, `.gltf`, `.glb`, any optionally `.gz`). Only a regular file is
 /// read (a FIFO or device is refused at once), within `options.limits`.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
     let (format, gz) = format_of(path).ok_or_else(|| MeshError::UnknownFormat {
@@ -54,6 +64,8 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
             builder.finish(options)
         }
         Format::Ply => ply::read(path, &bytes, options),
+        Format::Stl => stl::read(path, &bytes, options),
+        Format::Gltf | Format::Glb => gltf::read(path, &bytes, options),
     }
 }
 
@@ -99,8 +111,8 @@ pub struct SaveOptions {
     pub ply_encoding: PlyEncoding,
 }
 
-/// Writes a mesh in the format its extension names (`.obj` with its MTL and textures, or
-/// `.ply`). Returns every file written. Compressed output is not supported.
+/// Writes a mesh in the format its extension names (`.obj` with its MTL and textures,
+/// `.ply`, or `.glb` with its textures inside). Returns every file written. Compressed output is not supported.
 pub fn save(mesh: &Mesh, path: &Path, options: &SaveOptions) -> Result<Vec<PathBuf>> {
     save_reserving(mesh, path, options, &[])
 }
@@ -119,6 +131,7 @@ pub fn save_reserving(
         Some((Format::Ply, false)) => {
             ply::write_reserving(mesh, path, options.ply_encoding, reserved)
         }
+        Some((Format::Glb, false)) => gltf::write(mesh, path),
         _ => Err(MeshError::UnknownFormat {
             path: path.to_path_buf(),
         }),
@@ -134,14 +147,17 @@ mod tests {
         assert_eq!(format_of(Path::new("a/b.OBJ")), Some((Format::Obj, false)));
         assert_eq!(format_of(Path::new("b.obj.gz")), Some((Format::Obj, true)));
         assert_eq!(format_of(Path::new("b.ply.GZ")), Some((Format::Ply, true)));
-        assert_eq!(format_of(Path::new("b.stl")), None);
+        assert_eq!(format_of(Path::new("b.STL")), Some((Format::Stl, false)));
+        assert_eq!(format_of(Path::new("b.glb")), Some((Format::Glb, false)));
+        assert_eq!(format_of(Path::new("b.gltf")), Some((Format::Gltf, false)));
+        assert_eq!(format_of(Path::new("b.fbx")), None);
         assert_eq!(format_of(Path::new("b.gz")), None);
         assert_eq!(format_of(Path::new("obj")), None);
     }
 
     #[test]
     fn unknown_extension_is_unknown_format() {
-        let err = load(Path::new("/nonexistent/x.stl"), &LoadOptions::default()).unwrap_err();
+        let err = load(Path::new("/nonexistent/x.fbx"), &LoadOptions::default()).unwrap_err();
         assert!(matches!(err, MeshError::UnknownFormat { .. }));
     }
 

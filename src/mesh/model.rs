@@ -6,7 +6,8 @@
 //! seams stay closed by construction.
 
 use glam::{DVec2, DVec3};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Sentinel-free optional index: wedges without a texture coordinate or normal use `None`.
 pub type Index = u32;
@@ -30,6 +31,20 @@ pub struct Texture {
     pub path: PathBuf,
     /// Pixel size, known after the image decoded (`None` if not checked).
     pub size: Option<(u32, u32)>,
+    /// The image's bytes when it came inside the scan's own file (a GLB's buffer, a `data:`
+    /// URI) rather than as a file beside it. `path` is then a name for it that is never
+    /// opened (`<scan file>#image<N>`); readers decode these bytes and writers copy them.
+    pub embedded: Option<EmbeddedImage>,
+}
+
+/// Image bytes (PNG or JPEG) kept exactly as they came, shared between copies of a mesh.
+#[derive(Clone, PartialEq)]
+pub struct EmbeddedImage(pub Arc<[u8]>);
+
+impl std::fmt::Debug for EmbeddedImage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "EmbeddedImage({} bytes)", self.0.len())
+    }
 }
 
 /// A file named by one of a material's `other_statements` (`map_Bump`, `bump`, `disp`, ...),
@@ -138,6 +153,16 @@ impl Mesh {
     #[inline]
     pub fn triangle_origin(&self, t: usize) -> Index {
         self.triangle_origins.get(t).copied().unwrap_or(t as Index)
+    }
+
+    /// The embedded bytes of the texture known by `path`, if it is one (see
+    /// [`Texture::embedded`]).
+    pub fn embedded_image(&self, path: &Path) -> Option<&EmbeddedImage> {
+        self.materials
+            .iter()
+            .filter_map(|m| m.diffuse_texture.as_ref())
+            .find(|t| t.path == path)
+            .and_then(|t| t.embedded.as_ref())
     }
 
     /// Axis-aligned bounding box of the positions, `None` for an empty mesh.

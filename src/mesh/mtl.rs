@@ -164,6 +164,7 @@ pub fn load(mtl_path: &Path, scan_dir: &Path, limits: &InputLimits) -> Result<Ve
                 name: name.clone(),
                 path: resolve(name)?,
                 size: None,
+                embedded: None,
             }),
             None => None,
         };

@@ -849,6 +849,7 @@ fn assign_materials(path: &Path, g: &Geometry, options: &LoadOptions) -> Result<
                         name,
                         path: texture_path.clone(),
                         size: None,
+                        embedded: None,
                     }),
                     other_statements: Vec::new(),
                     map_files: Vec::new(),
@@ -940,6 +941,7 @@ fn check_textures(
                 path: &t.path,
                 name: &t.name,
                 referrer,
+                embedded: None,
             })
         })
         .collect();
@@ -1000,7 +1002,7 @@ pub fn write_reserving(mesh: &Mesh, obj_path: &Path, reserved: &[String]) -> Res
         written.push(mtl_path);
         for (source, name) in plan.copies {
             let target = out_dir.join(&name);
-            copy_file(&source, &target)?;
+            copy_source(mesh, &source, &target)?;
             written.push(target);
         }
     }
@@ -1069,6 +1071,18 @@ fn plan_material_files(mesh: &Mesh, mut names: texture::OutputNames) -> Material
         mtl_text: text,
         copies,
     }
+}
+
+/// Writes a texture or map file of `mesh` to `target`: an image embedded in the scan's file
+/// (see [`crate::mesh::Texture::embedded`]) from its bytes, a file by [`copy_file`].
+pub fn copy_source(mesh: &Mesh, source: &Path, target: &Path) -> Result<()> {
+    let Some(embedded) = mesh.embedded_image(source) else {
+        return copy_file(source, target);
+    };
+    if let Some(parent) = target.parent() {
+        std::fs::create_dir_all(parent).map_err(|e| MeshError::write(parent, e))?;
+    }
+    std::fs::write(target, &embedded.0).map_err(|e| MeshError::write(target, e))
 }
 
 /// Copies `source` (a file the loader resolved) to `target`, unless they are the same file

@@ -308,6 +308,7 @@ mod tests {
                         name: "skin.jpg".into(),
                         path: "skin.jpg".into(),
                         size: Some((2400, 1600)),
+                        embedded: None,
                     }),
                     ..Default::default()
                 },

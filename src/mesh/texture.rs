@@ -18,7 +18,9 @@
 use super::error::{MeshError, Result};
 use super::files;
 use super::limits::{InputLimits, Limit};
+use super::model::Texture;
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Component, Path, PathBuf};
 
@@ -136,6 +138,21 @@ pub struct ImageRef<'a> {
     pub path: &'a Path,
     pub name: &'a str,
     pub referrer: &'a Path,
+    /// The image's bytes when it is embedded in the scan's file (then `path` is only its
+    /// name; see [`Texture::embedded`]).
+    pub embedded: Option<&'a [u8]>,
+}
+
+impl<'a> ImageRef<'a> {
+    /// The image of texture `t`, named in `referrer`.
+    pub fn of(t: &'a Texture, referrer: &'a Path) -> Self {
+        ImageRef {
+            path: &t.path,
+            name: &t.name,
+            referrer,
+            embedded: t.embedded.as_ref().map(|e| &*e.0),
+        }
+    }
 }
 
 /// What [`check_images`] learnt: the size of every distinct image, by resolved path.
@@ -207,9 +224,13 @@ fn image_error(image: &ImageRef, message: String) -> MeshError {
 /// An image file's bytes and the size its header declares.
 type Header = (Vec<u8>, (u32, u32));
 
-/// Reads an image file (within `limits.max_file_bytes`) and its size from its header.
+/// Reads an image file (within `limits.max_file_bytes`; an embedded image is copied) and
+/// its size from its header.
 fn read_header(image: &ImageRef, limits: &InputLimits) -> Result<Header> {
-    let bytes = files::read_whole(image.path, limits.max_file_bytes, Limit::FileBytes)?;
+    let bytes = match image.embedded {
+        Some(bytes) => bytes.to_vec(),
+        None => files::read_whole(image.path, limits.max_file_bytes, Limit::FileBytes)?,
+    };
     let size = image_size(&bytes).map_err(|message| image_error(image, message))?;
     Ok((bytes, size))
 }
@@ -265,12 +286,39 @@ pub fn load_image(
         path,
         name: &name,
         referrer: path,
+        embedded: None,
     };
-    let (bytes, (w, h)) = read_header(&image, limits)?;
+    load_bounded(&image, limits, pixels_left)
+}
+
+/// [`load_image`] for a texture, whether it is a file or embedded in the scan's file.
+pub fn load_texture(
+    t: &Texture,
+    limits: &InputLimits,
+    pixels_left: &mut u64,
+) -> Result<image::DynamicImage> {
+    load_bounded(&ImageRef::of(t, &t.path), limits, pixels_left)
+}
+
+/// A texture's bytes as they came: an embedded image's, or the file's (read within
+/// `limits.max_file_bytes`). Writers copy these.
+pub fn texture_bytes<'t>(t: &'t Texture, limits: &InputLimits) -> Result<Cow<'t, [u8]>> {
+    match &t.embedded {
+        Some(e) => Ok(Cow::Borrowed(&e.0)),
+        None => files::read_whole(&t.path, limits.max_file_bytes, Limit::FileBytes).map(Cow::Owned),
+    }
+}
+
+fn load_bounded(
+    image: &ImageRef,
+    limits: &InputLimits,
+    pixels_left: &mut u64,
+) -> Result<image::DynamicImage> {
+    let (bytes, (w, h)) = read_header(image, limits)?;
     let pixels = u64::from(w) * u64::from(h);
     if pixels > *pixels_left {
         return Err(files::too_large(
-            path,
+            image.path,
             format!(
                 "texture ({w}×{h}) brings the decoded pixels above what is left ({pixels_left}) of"
             ),
@@ -279,7 +327,7 @@ pub fn load_image(
         ));
     }
     *pixels_left -= pixels;
-    decode_bounded(&bytes, (w, h)).map_err(|message| image_error(&image, message))
+    decode_bounded(&bytes, (w, h)).map_err(|message| image_error(image, message))
 }
 
 /// True if a JPEG's first scan is followed, somewhere, by an EOI marker (FF D9).

@@ -10,7 +10,7 @@
 
 use super::Summary;
 use super::surface::{Closest, SurfacePoint};
-use crate::mesh::{InputLimits, Mesh, texture};
+use crate::mesh::{InputLimits, Mesh, Texture, texture};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use rayon::prelude::*;
@@ -76,6 +76,22 @@ impl TextureCache {
         loaded
     }
 
+    /// The decoded image of texture `t` (a file or embedded in the scan's file), or why it
+    /// could not be read.
+    pub fn get_texture(&mut self, t: &Texture) -> Result<Arc<RgbImage>, String> {
+        if t.embedded.is_none() {
+            return self.get(&t.path);
+        }
+        if let Some(known) = self.images.get(&t.path) {
+            return known.clone();
+        }
+        let loaded = texture::load_texture(t, &self.limits, &mut self.pixels_left)
+            .map(|img| Arc::new(img.to_rgb8()))
+            .map_err(|e| e.to_string());
+        self.images.insert(t.path.clone(), loaded.clone());
+        loaded
+    }
+
     /// One image per material of `mesh` (`None` where a material has no texture).
     fn material_images(&mut self, mesh: &Mesh) -> Result<Vec<Option<Arc<RgbImage>>>, String> {
         mesh.materials
@@ -83,7 +99,7 @@ impl TextureCache {
             .map(|m| {
                 m.diffuse_texture
                     .as_ref()
-                    .map(|t| self.get(&t.path))
+                    .map(|t| self.get_texture(t))
                     .transpose()
             })
             .collect()
@@ -197,6 +213,7 @@ mod tests {
                 name: "ramp.png".into(),
                 path: path.to_path_buf(),
                 size: None,
+                embedded: None,
             }),
             other_statements: vec![],
             map_files: vec![],

@@ -63,7 +63,7 @@ impl<'a> Surface<'a> {
             .map(|m| {
                 let texture = m.diffuse_texture.as_ref()?;
                 cache
-                    .get(&texture.path)
+                    .get_texture(texture)
                     .map_err(|e| tracing::warn!("preview: texture not drawn: {e}"))
                     .ok()
             })

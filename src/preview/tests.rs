@@ -94,6 +94,7 @@ fn a_textured_quad_shows_its_texture_right_way_up() {
             name: "t.png".into(),
             path: path.clone(),
             size: Some((8, 8)),
+            embedded: None,
         }),
         ..Material::default()
     }];

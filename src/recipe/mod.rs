@@ -47,6 +47,109 @@ pub enum OutputFormat {
     #[default]
     Obj,
     Ply,
+    /// Binary glTF with its textures inside (for web viewers).
+    Glb,
+}
+
+impl OutputFormat {
+    pub const ALL: [OutputFormat; 3] = [OutputFormat::Obj, OutputFormat::Ply, OutputFormat::Glb];
+
+    /// The name in a recipe, which is also the output file's extension.
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputFormat::Obj => "obj",
+            OutputFormat::Ply => "ply",
+            OutputFormat::Glb => "glb",
+        }
+    }
+
+    fn from_name(name: &str) -> Result<OutputFormat, String> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == name)
+            .ok_or_else(|| {
+                format!("unknown output format {name:?}, expected one of \"obj\", \"ply\", \"glb\"")
+            })
+    }
+}
+
+/// The formats a job writes, in order, each once: `format = "obj"` or
+/// `format = ["obj", "glb"]`. A single format is serialised as a plain string, so that the
+/// resolved form and hash of a recipe written before lists were allowed stay the same.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct OutputFormats(Vec<OutputFormat>);
+
+impl OutputFormats {
+    /// The formats; never empty, no repeats.
+    pub fn list(&self) -> &[OutputFormat] {
+        &self.0
+    }
+
+    /// Checks and wraps a list (non-empty, no format twice).
+    pub fn new(formats: Vec<OutputFormat>) -> Result<OutputFormats, String> {
+        if formats.is_empty() {
+            return Err("format lists no output format".into());
+        }
+        for (i, f) in formats.iter().enumerate() {
+            if formats[..i].contains(f) {
+                return Err(format!("format lists {:?} twice", f.name()));
+            }
+        }
+        Ok(OutputFormats(formats))
+    }
+}
+
+impl Default for OutputFormats {
+    fn default() -> Self {
+        OutputFormats(vec![OutputFormat::Obj])
+    }
+}
+
+impl From<OutputFormat> for OutputFormats {
+    fn from(f: OutputFormat) -> Self {
+        OutputFormats(vec![f])
+    }
+}
+
+impl Serialize for OutputFormats {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self.0.as_slice() {
+            [one] => one.serialize(s),
+            many => many.serialize(s),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for OutputFormats {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = OutputFormats;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a format name or a list of them, e.g. [\"obj\", \"glb\"]")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Self::Value, E> {
+                OutputFormat::from_name(v)
+                    .map(OutputFormats::from)
+                    .map_err(E::custom)
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Self::Value, A::Error> {
+                let mut formats = Vec::new();
+                // Bounded by the three formats there are: a longer list repeats one.
+                while let Some(name) = seq.next_element::<String>()? {
+                    formats.push(OutputFormat::from_name(&name).map_err(serde::de::Error::custom)?);
+                    if formats.len() > OutputFormat::ALL.len() {
+                        break;
+                    }
+                }
+                OutputFormats::new(formats).map_err(serde::de::Error::custom)
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 /// PLY encoding on output.
@@ -63,7 +166,7 @@ pub enum PlyEncodingSpec {
 #[serde(deny_unknown_fields)]
 pub struct OutputSpec {
     #[serde(default)]
-    pub format: OutputFormat,
+    pub format: OutputFormats,
     #[serde(default)]
     pub ply_encoding: PlyEncodingSpec,
 }
@@ -420,9 +523,37 @@ mod tests {
     #[test]
     fn parses_normals_with_defaults() {
         let r = parse("[output]\nformat = \"ply\"\n[[step]]\nkind = \"normals\"\n").unwrap();
-        assert_eq!(r.output.format, OutputFormat::Ply);
+        assert_eq!(r.output.format, OutputFormat::Ply.into());
         assert_eq!(r.steps.len(), 1);
         assert_eq!(r.steps[0].kind(), "normals");
+    }
+
+    #[test]
+    fn output_format_is_a_name_or_a_list() {
+        let one = parse("[output]\nformat = \"obj\"\n").unwrap();
+        let list = parse("[output]\nformat = [\"obj\", \"glb\"]\n").unwrap();
+        assert_eq!(
+            list.output.format.list(),
+            [OutputFormat::Obj, OutputFormat::Glb]
+        );
+        // A single format keeps the resolved form (and hash) it always had.
+        assert_eq!(one.resolved_json()["output"]["format"], "obj");
+        assert_eq!(one.hash(), parse("").unwrap().hash());
+        assert_eq!(
+            list.resolved_json()["output"]["format"],
+            serde_json::json!(["obj", "glb"])
+        );
+        for (bad, says) in [
+            ("[]", "no output format"),
+            ("[\"obj\", \"obj\"]", "\"obj\" twice"),
+            ("[\"obj\", \"stl\"]", "unknown output format \"stl\""),
+            ("3", "a format name or a list"),
+        ] {
+            let e = parse(&format!("[output]\nformat = {bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
     }
 
     #[test]

@@ -32,6 +32,8 @@ pub struct HistoryRow {
     pub out_faces: Option<i64>,
     pub process_ms: Option<f64>,
     pub output: Option<String>,
+    /// The names of the files published into `output` (meshes, MTL, textures), sorted.
+    pub outputs: Vec<String>,
     pub error_kind: Option<String>,
     pub error: Option<String>,
 }
@@ -135,6 +137,7 @@ impl Store {
                         out_faces: None,
                         process_ms: None,
                         output: None,
+                        outputs: Vec::new(),
                         error_kind: Some("waiting".into()),
                         error: Some(bounded(&r.get::<_, String>(2)?, MAX_SHOWN)),
                     })
@@ -169,6 +172,7 @@ impl Store {
                     out_faces: r.get(8)?,
                     process_ms: r.get(9)?,
                     output: r.get::<_, Option<String>>(10)?.map(|o| escape_str(&o)),
+                    outputs: Vec::new(),
                     error_kind: r.get(11)?,
                     error: r
                         .get::<_, Option<String>>(12)?
@@ -179,7 +183,26 @@ impl Store {
         for row in mapped {
             rows.push(row.map_err(err)?);
         }
+        drop(stmt);
+        self.fill_output_names(&mut rows).map_err(err)?;
         Ok(rows)
+    }
+
+    /// Fills [`HistoryRow::outputs`] from the recorded output files.
+    fn fill_output_names(&self, rows: &mut [HistoryRow]) -> rusqlite::Result<()> {
+        let mut stmt = self
+            .conn
+            .prepare_cached("SELECT path FROM job_output WHERE job_id=?1 ORDER BY path")?;
+        for row in rows.iter_mut() {
+            let Some(id) = row.id else { continue };
+            let paths = stmt.query_map([id], |r| r.get::<_, String>(0))?;
+            for path in paths {
+                let path = path?;
+                let name = path.rsplit('/').next().unwrap_or(&path);
+                row.outputs.push(escape_str(name));
+            }
+        }
+        Ok(())
     }
 
     /// Everything recorded about a job, as JSON: the job, its inputs, outputs, every

@@ -747,6 +747,7 @@ fn texture_materials(
                     name: name.clone(),
                     path: resolved.path,
                     size: None,
+                    embedded: None,
                 });
             }
             Err(MeshError::Texture { .. }) => {
@@ -769,6 +770,7 @@ fn texture_materials(
             path: &t.path,
             name: &t.name,
             referrer: path,
+            embedded: None,
         })
         .collect();
     let checked = texture::check_images(&images, &options.limits)?;

@@ -20,7 +20,7 @@ use super::PlyEncoding;
 use super::read::MISSING_TEXTURE_PREFIX;
 use crate::mesh::error::{MeshError, Result};
 use crate::mesh::model::Mesh;
-use crate::mesh::obj::copy_file;
+use crate::mesh::obj::copy_source;
 use crate::mesh::texture::{OutputNames, sanitise_output_name};
 use glam::DVec3;
 use std::fmt::Write as _;
@@ -320,11 +320,11 @@ pub fn write_reserving(
     let dir = path.parent().unwrap_or(Path::new(""));
     for (source, name) in copies {
         // A texture of a mesh made in memory may have no file: its name is written only.
-        if !source.is_file() {
+        if mesh.embedded_image(&source).is_none() && !source.is_file() {
             continue;
         }
         let target = dir.join(&name);
-        copy_file(&source, &target)?;
+        copy_source(mesh, &source, &target)?;
         written.push(target);
     }
     Ok(written)
