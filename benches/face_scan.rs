@@ -12,33 +12,19 @@
 //! triangle. Prints medians of wall and CPU time and the peak RSS; criterion's own figures
 //! follow.
 
+mod common;
+
+use common::{FACE, FACES, face400k};
 use criterion::{Criterion, criterion_group, criterion_main};
-use scanmill::mesh::{LoadOptions, SaveOptions, load, save};
-use scanmill::metrics::noise::{NoiseOptions, add_noise};
-use scanmill::ops::subdivide::scanner_sized;
+use scanmill::mesh::{SaveOptions, save};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-const FACE: &str = "../shared/data/textured/facefuns_di3d_face/example.obj";
-const TEXTURE: &str = "../shared/data/textured/facefuns_di3d_face/example.png";
 const RECIPE: &str = "config/recipes/face-scan.toml";
-const FACES: usize = 400_000;
 
 fn make_scan(dir: &Path) -> Option<PathBuf> {
-    let options = LoadOptions {
-        texture_override: Some(PathBuf::from(TEXTURE)),
-        ..LoadOptions::default()
-    };
-    let (mesh, _) = load(Path::new(FACE), &options).ok()?;
-    let mut mesh = scanner_sized(&mesh, FACES);
-    add_noise(
-        &mut mesh,
-        &NoiseOptions {
-            sigma_factor: 0.1,
-            ..NoiseOptions::default()
-        },
-    );
+    let mesh = face400k()?;
     let path = dir.join("face400k.obj");
     save(&mesh, &path, &SaveOptions::default()).ok()?;
     Some(path)

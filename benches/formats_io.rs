@@ -6,36 +6,16 @@
 //!
 //! cargo bench --bench formats_io; figures in docs/formats.md.
 
+mod common;
+
+use common::face400k;
 use criterion::{Criterion, criterion_group, criterion_main};
 use scanmill::mesh::ply::PlyEncoding;
 use scanmill::mesh::{LoadOptions, Mesh, SaveOptions, load, save};
-use scanmill::metrics::noise::{NoiseOptions, add_noise};
-use scanmill::ops::subdivide::scanner_sized;
 use std::hint::black_box;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Duration;
-
-const FACE: &str = "../shared/data/textured/facefuns_di3d_face/example.obj";
-const TEXTURE: &str = "../shared/data/textured/facefuns_di3d_face/example.png";
-const FACES: usize = 400_000;
-
-fn face400k() -> Option<Mesh> {
-    let options = LoadOptions {
-        texture_override: Some(PathBuf::from(TEXTURE)),
-        ..LoadOptions::default()
-    };
-    let (mesh, _) = load(Path::new(FACE), &options).ok()?;
-    let mut mesh = scanner_sized(&mesh, FACES);
-    add_noise(
-        &mut mesh,
-        &NoiseOptions {
-            sigma_factor: 0.1,
-            ..NoiseOptions::default()
-        },
-    );
-    Some(mesh)
-}
 
 /// The mesh's triangles as an STL (binary, or ASCII with `f32` coordinates in shortest form).
 fn write_stl(mesh: &Mesh, path: &Path, binary: bool) {

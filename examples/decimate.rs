@@ -13,6 +13,7 @@
 
 use clap::Parser;
 use glam::{DVec2, DVec3};
+use scanmill::geom::closest_on_triangle;
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
 use scanmill::ops::decimate::{self, DecimateParams, Method};
@@ -85,44 +86,6 @@ impl Image {
             (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
         })
     }
-}
-
-/// Closest point on triangle `abc` to `p` (Ericson, Real-Time Collision Detection 5.1.5),
-/// with its barycentric coordinates.
-fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DVec3) {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return (a, DVec3::X);
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return (b, DVec3::Y);
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return (a + ab * v, DVec3::new(1.0 - v, v, 0.0));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return (c, DVec3::Z);
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return (a + ac * w, DVec3::new(1.0 - w, 0.0, w));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return (b + (c - b) * w, DVec3::new(0.0, 1.0 - w, w));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    let (v, w) = (vb * denom, vc * denom);
-    (a + ab * v + ac * w, DVec3::new(1.0 - v - w, v, w))
 }
 
 /// Uniform grid over the input's triangles for closest-point queries.
