@@ -71,7 +71,7 @@ pub fn is_ignored_name(name: &str) -> bool {
 }
 
 /// The kind of scan a file name starts, if any (anchored at the end: `.obj`, `.ply`,
-/// `.stl`, `.glb`, each optionally `.gz`, any case).
+/// `.stl`, `.gltf`, `.glb`, each optionally `.gz`, any case).
 pub fn primary_kind(name: &str) -> Option<PrimaryKind> {
     let lower = name.to_ascii_lowercase();
     let base = lower.strip_suffix(".gz").unwrap_or(&lower);
@@ -79,6 +79,8 @@ pub fn primary_kind(name: &str) -> Option<PrimaryKind> {
         Some(PrimaryKind::Obj)
     } else if base.ends_with(".ply") && base.len() > 4 {
         Some(PrimaryKind::Ply)
+    } else if base.ends_with(".gltf") && base.len() > 5 {
+        Some(PrimaryKind::Gltf)
     } else if (base.ends_with(".stl") || base.ends_with(".glb")) && base.len() > 4 {
         Some(PrimaryKind::SelfContained)
     } else {
@@ -90,9 +92,10 @@ pub fn primary_kind(name: &str) -> Option<PrimaryKind> {
 pub enum PrimaryKind {
     Obj,
     Ply,
+    /// A `.gltf`: the JSON names its buffers and images, which are members beside it.
+    Gltf,
     /// STL and GLB: one file holds the whole scan (a GLB its textures too), so the set is the
-    /// file alone. (A `.gltf` names buffers and images beside it, whose arrival the watcher
-    /// would have to follow; it is read by `scanmill process` and `inspect`, not watched.)
+    /// file alone.
     SelfContained,
 }
 
@@ -163,7 +166,9 @@ mod tests {
         assert_eq!(primary_kind("a.obj.mtl"), None);
         assert_eq!(primary_kind("a.STL"), Some(PrimaryKind::SelfContained));
         assert_eq!(primary_kind("a.glb"), Some(PrimaryKind::SelfContained));
-        assert_eq!(primary_kind("a.gltf"), None);
+        assert_eq!(primary_kind("a.gltf"), Some(PrimaryKind::Gltf));
+        assert_eq!(primary_kind("a.GLTF.gz"), Some(PrimaryKind::Gltf));
+        assert_eq!(primary_kind("a.gltf.bin"), None);
         assert_eq!(primary_kind(".obj"), None);
         assert!(is_ignored_name("x.PART"));
         assert!(is_ignored_name("~$x.obj"));

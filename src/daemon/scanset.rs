@@ -20,10 +20,13 @@
 
 pub mod content;
 
-pub use content::{Content, ContentError, Done, MTL_MAX_BYTES, MTLLIB_SCAN_BYTES, RefKind, Work};
+pub use content::{
+    Content, ContentError, Done, GLTF_JSON_MAX_BYTES, MTL_MAX_BYTES, MTLLIB_SCAN_BYTES, RefKind,
+    Reference, Work,
+};
 
 use super::glob::{Filter, PrimaryKind, primary_kind};
-use crate::store::{InputMember, RelPath};
+use crate::store::{InputMember, InputRole, RelPath};
 use crate::text::{escape_path, escape_str};
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -135,7 +138,7 @@ pub struct Member {
     /// Resolved (what the content thread opens).
     pub real: PathBuf,
     pub rel: RelPath,
-    pub role: &'static str,
+    pub role: InputRole,
     pub sig: StatSig,
 }
 
@@ -247,18 +250,18 @@ pub fn resolve(dir: &Path, name: &str) -> PathBuf {
 /// they are not read again until they change.
 #[derive(Default)]
 pub struct RefCache {
-    entries: HashMap<PathBuf, (StatSig, Result<Vec<String>, String>)>,
+    entries: HashMap<PathBuf, (StatSig, Result<Vec<Reference>, String>)>,
 }
 
 impl RefCache {
-    fn get(&self, path: &Path, sig: StatSig) -> Option<&Result<Vec<String>, String>> {
+    fn get(&self, path: &Path, sig: StatSig) -> Option<&Result<Vec<Reference>, String>> {
         self.entries
             .get(path)
             .filter(|(cached, _)| *cached == sig)
             .map(|(_, r)| r)
     }
 
-    fn insert(&mut self, path: PathBuf, sig: StatSig, names: Result<Vec<String>, String>) {
+    fn insert(&mut self, path: PathBuf, sig: StatSig, names: Result<Vec<Reference>, String>) {
         self.entries.insert(path, (sig, names));
     }
 
@@ -291,33 +294,68 @@ pub fn set_spec(
             path: primary.to_path_buf(),
             real: primary_real.clone(),
             rel: primary_rel,
-            role: "mesh",
+            role: InputRole::Mesh,
             sig: primary_sig,
         }],
         ..SetSpec::default()
     };
-    let is_obj = primary
-        .file_name()
-        .is_some_and(|n| primary_kind(&n.to_string_lossy()) == Some(PrimaryKind::Obj));
-    if !is_obj {
+    let Some(kind) = references_of(primary) else {
         return Ok(spec);
-    }
-    let read = |path: &PathBuf, sig: StatSig, kind: RefKind| {
-        SpecError::Read(Work::Refs {
-            primary: primary.to_path_buf(),
-            path: path.clone(),
-            sig,
-            kind,
-        })
     };
-    let arguments = match cache.get(&primary_real, primary_sig) {
-        None => return Err(read(&primary_real, primary_sig, RefKind::Obj)),
+    let refs = match cache.get(&primary_real, primary_sig) {
+        None => return Err(read_refs(primary, &primary_real, primary_sig, kind)),
         Some(Err(reason)) => return Err(SpecError::Failed(reason.clone())),
-        Some(Ok(names)) => names.clone(),
+        Some(Ok(refs)) => refs.clone(),
     };
     let dir = primary.parent().unwrap_or(Path::new("."));
     let mut seen: BTreeSet<PathBuf> = BTreeSet::new();
-    for argument in arguments {
+    match kind {
+        RefKind::Obj => obj_members(
+            &mut spec, primary, dir, &name, refs, confine, cache, &mut seen,
+        )?,
+        _ => {
+            for r in refs {
+                spec.add(dir, &r, &escape_str(&name), confine, &mut seen);
+            }
+        }
+    }
+    Ok(spec)
+}
+
+/// Which references a primary file holds that make other files members of its set: an
+/// OBJ's material libraries and a `.gltf`'s buffers and images. PLY, STL and GLB scans
+/// are one file.
+fn references_of(primary: &Path) -> Option<RefKind> {
+    let kind = primary_kind(&primary.file_name()?.to_string_lossy())?;
+    match kind {
+        PrimaryKind::Obj => Some(RefKind::Obj),
+        PrimaryKind::Gltf => Some(RefKind::Gltf),
+        PrimaryKind::Ply | PrimaryKind::SelfContained => None,
+    }
+}
+
+fn read_refs(primary: &Path, path: &Path, sig: StatSig, kind: RefKind) -> SpecError {
+    SpecError::Read(Work::Refs {
+        primary: primary.to_path_buf(),
+        path: path.to_path_buf(),
+        sig,
+        kind,
+    })
+}
+
+/// An OBJ's members: each MTL its `mtllib` arguments name, then the images each MTL names.
+#[allow(clippy::too_many_arguments)]
+fn obj_members(
+    spec: &mut SetSpec,
+    primary: &Path,
+    dir: &Path,
+    name: &str,
+    mtllibs: Vec<Reference>,
+    confine: &Confine,
+    cache: &RefCache,
+    seen: &mut BTreeSet<PathBuf>,
+) -> Result<(), SpecError> {
+    for argument in mtllibs.into_iter().map(|r| r.name) {
         // The whole argument if that file exists (names with spaces), else its words.
         let whole = resolve(dir, &argument);
         let names: Vec<String> = if matches!(confine.look(&whole), Look::Regular { .. }) {
@@ -343,7 +381,7 @@ pub fn set_spec(
                 continue;
             }
             let maps = match cache.get(&real, sig) {
-                None => return Err(read(&real, sig, RefKind::Mtl)),
+                None => return Err(read_refs(primary, &real, sig, RefKind::Mtl)),
                 Some(Err(reason)) => {
                     spec.refused.push(reason.clone());
                     continue;
@@ -354,37 +392,45 @@ pub fn set_spec(
                 path: mtl.clone(),
                 real,
                 rel,
-                role: "mtl",
+                role: InputRole::Mtl,
                 sig,
             });
             let mtl_dir = mtl.parent().unwrap_or(dir).to_path_buf();
             for texture in maps {
-                let path = resolve(&mtl_dir, &texture);
-                if !seen.insert(path.clone()) {
-                    continue;
-                }
-                let named = format!(
-                    "{} (named by {})",
-                    escape_str(&texture),
-                    escape_str(&mtl_name)
-                );
-                match confine.look(&path) {
-                    Look::Regular { sig, real, rel } => spec.members.push(Member {
-                        path,
-                        real,
-                        rel,
-                        role: "texture",
-                        sig,
-                    }),
-                    other => spec.note(named, other),
-                }
+                spec.add(&mtl_dir, &texture, &escape_str(&mtl_name), confine, seen);
             }
         }
     }
-    Ok(spec)
+    Ok(())
 }
 
 impl SetSpec {
+    /// Adds the file `r` names (relative to `dir`, the referring file's folder, named
+    /// `by`) as a member, or notes why it is not one; a file already seen is skipped.
+    fn add(
+        &mut self,
+        dir: &Path,
+        r: &Reference,
+        by: &str,
+        confine: &Confine,
+        seen: &mut BTreeSet<PathBuf>,
+    ) {
+        let path = resolve(dir, &r.name);
+        if !seen.insert(path.clone()) {
+            return;
+        }
+        match confine.look(&path) {
+            Look::Regular { sig, real, rel } => self.members.push(Member {
+                path,
+                real,
+                rel,
+                role: r.role,
+                sig,
+            }),
+            other => self.note(format!("{} (named by {by})", escape_str(&r.name)), other),
+        }
+    }
+
     /// Files a reference that is not a member under missing or refused.
     fn note(&mut self, named: String, look: Look) {
         match look {
@@ -771,10 +817,8 @@ impl Tracker {
         // Parse references only once the primary has held still for one look, so that a
         // file being written is not re-read on every event.
         let previous_primary = t.sigs.first().copied().flatten();
-        let is_obj = primary
-            .file_name()
-            .is_some_and(|n| primary_kind(&n.to_string_lossy()) == Some(PrimaryKind::Obj));
-        let changing = is_obj && !(previous_primary == Some(primary_sig) || t.sigs.is_empty());
+        let changing = references_of(primary).is_some()
+            && !(previous_primary == Some(primary_sig) || t.sigs.is_empty());
         let spec = if changing {
             let (sig, real, rel) = look;
             SetSpec {
@@ -782,7 +826,7 @@ impl Tracker {
                     path: primary.to_path_buf(),
                     real,
                     rel,
-                    role: "mesh",
+                    role: InputRole::Mesh,
                     sig,
                 }],
                 missing: vec!["(mesh file still changing)".into()],
@@ -977,7 +1021,7 @@ impl Tracker {
 pub fn set_hash(inputs: &[InputMember]) -> String {
     let mut h = Sha256::new();
     for m in inputs {
-        h.update(m.role.as_bytes());
+        h.update(m.role.as_str().as_bytes());
         h.update(b":");
         h.update(m.sha256.as_bytes());
         h.update(b"\n");

@@ -289,7 +289,7 @@ fn write_sidecar(
         "set_hash": job.set_hash,
         "inputs": job.inputs.iter().map(|m| json!({
             "path": crate::text::escape_path(&Path::new(&job.root).join(&m.rel_path)),
-            "role": m.role, "bytes": m.size, "mtime_ns": m.mtime_ns, "sha256": m.sha256,
+            "role": m.role.as_str(), "bytes": m.size, "mtime_ns": m.mtime_ns, "sha256": m.sha256,
         })).collect::<Vec<_>>(),
         "recipe": { "path": spec.recipe_path, "hash": job.recipe_hash, "resolved": spec.recipe.resolved_json() },
         "config_hash": spec.config_hash,

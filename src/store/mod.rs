@@ -77,13 +77,48 @@ pub fn now_ms() -> i64 {
         .unwrap_or(0)
 }
 
+/// What a file is to its scan set (stored as the documented names in `job_input.role`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum InputRole {
+    /// The mesh file the set is named after (OBJ, PLY, STL, glTF, GLB).
+    Mesh,
+    /// A material library an OBJ names.
+    Mtl,
+    /// An image an MTL or a `.gltf` names.
+    Texture,
+    /// A `.gltf`'s external buffer (vertex and index data).
+    Buffer,
+}
+
+impl InputRole {
+    pub const ALL: [InputRole; 4] = [
+        InputRole::Mesh,
+        InputRole::Mtl,
+        InputRole::Texture,
+        InputRole::Buffer,
+    ];
+
+    /// The stored and shown name; part of a set's content hash, so never renamed.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            InputRole::Mesh => "mesh",
+            InputRole::Mtl => "mtl",
+            InputRole::Texture => "texture",
+            InputRole::Buffer => "buffer",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<InputRole> {
+        InputRole::ALL.into_iter().find(|r| r.as_str() == name)
+    }
+}
+
 /// One file of a job's input set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InputMember {
     /// Relative to the job's root.
     pub rel_path: RelPath,
-    /// "mesh", "mtl" or "texture".
-    pub role: &'static str,
+    pub role: InputRole,
     pub size: u64,
     pub mtime_ns: i64,
     pub ino: u64,
@@ -834,7 +869,7 @@ fn insert_inputs(
     for m in inputs {
         tx.execute(
             "INSERT INTO job_input(job_id, rel_path, role, size, mtime_ns, ino, sha256) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
-            params![id, m.rel_path, m.role, m.size as i64, m.mtime_ns, m.ino as i64, m.sha256],
+            params![id, m.rel_path, m.role.as_str(), m.size as i64, m.mtime_ns, m.ino as i64, m.sha256],
         )?;
     }
     Ok(())
@@ -848,11 +883,13 @@ fn load_inputs(conn: &Connection, id: i64) -> rusqlite::Result<Vec<InputMember>>
         let role: String = r.get(1)?;
         Ok(InputMember {
             rel_path: r.get(0)?,
-            role: match role.as_str() {
-                "mesh" => "mesh",
-                "mtl" => "mtl",
-                _ => "texture",
-            },
+            role: InputRole::from_name(&role).ok_or_else(|| {
+                rusqlite::Error::FromSqlConversionFailure(
+                    1,
+                    rusqlite::types::Type::Text,
+                    format!("unknown input role {role:?}").into(),
+                )
+            })?,
             size: r.get::<_, i64>(2)? as u64,
             mtime_ns: r.get(3)?,
             ino: r.get::<_, i64>(4)? as u64,

@@ -4,7 +4,7 @@
 //! keeps the audit trail of when each was applied and by which version of scanmill.
 
 /// Migration `i` brings the schema from version `i` to `i + 1`.
-pub const MIGRATIONS: &[&str] = &[V1, V2, V3];
+pub const MIGRATIONS: &[&str] = &[V1, V2, V3, V4];
 
 /// The newest schema version this binary knows.
 pub const LATEST: u32 = MIGRATIONS.len() as u32;
@@ -142,4 +142,24 @@ CREATE INDEX job_state_id ON job(state, id);
 CREATE INDEX job_root_id ON job(root, id);
 CREATE INDEX job_id_name ON job(id, rel_path);
 CREATE INDEX job_state_root_time ON job(state, root, process_ms);
+"#;
+
+/// A `.gltf` scan's external buffers (`.bin`) become set members with the role `buffer`.
+/// SQLite cannot alter a CHECK constraint, so the table is rebuilt with the wider one.
+const V4: &str = r#"
+CREATE TABLE job_input_v4 (
+    job_id   INTEGER NOT NULL REFERENCES job(id),
+    rel_path TEXT NOT NULL,
+    role     TEXT NOT NULL CHECK (role IN ('mesh','mtl','texture','buffer')),
+    size     INTEGER NOT NULL,
+    mtime_ns INTEGER NOT NULL,
+    ino      INTEGER NOT NULL,
+    sha256   TEXT NOT NULL,
+    PRIMARY KEY (job_id, rel_path)
+) STRICT;
+INSERT INTO job_input_v4(rowid, job_id, rel_path, role, size, mtime_ns, ino, sha256)
+    SELECT rowid, job_id, rel_path, role, size, mtime_ns, ino, sha256 FROM job_input;
+DROP TABLE job_input;
+ALTER TABLE job_input_v4 RENAME TO job_input;
+CREATE INDEX job_input_hash ON job_input(sha256);
 "#;

@@ -23,7 +23,7 @@ fn job(key: &str, rel: &str) -> NewJob {
         max_attempts: 2,
         inputs: vec![InputMember {
             rel_path: rel.into(),
-            role: "mesh",
+            role: InputRole::Mesh,
             size: 10,
             mtime_ns: 5,
             ino: 7,
@@ -82,6 +82,44 @@ fn a_version_1_database_gains_the_preview_column() {
         .collect::<rusqlite::Result<_>>()
         .unwrap();
     assert!(columns.iter().any(|c| c == "preview"), "{columns:?}");
+}
+
+#[test]
+fn a_version_3_database_keeps_its_inputs_in_order_and_accepts_buffers() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("db.sqlite");
+    let conn = rusqlite::Connection::open(&path).unwrap();
+    for m in &schema::MIGRATIONS[..3] {
+        conn.execute_batch(m).unwrap();
+    }
+    conn.pragma_update(None, "user_version", 3).unwrap();
+    drop(conn);
+    let mut old = Store::open_existing(&path, true).unwrap();
+    let mut set = job("k1", "a.obj");
+    for (rel, role) in [("a.mtl", InputRole::Mtl), ("a.jpg", InputRole::Texture)] {
+        set.inputs.push(InputMember {
+            rel_path: rel.into(),
+            role,
+            ..set.inputs[0].clone()
+        });
+    }
+    old.enqueue(&set).unwrap();
+    drop(old);
+
+    let mut s = Store::open(&path).unwrap();
+    let mut gltf = job("k2", "b.gltf");
+    gltf.inputs.push(InputMember {
+        rel_path: "b.bin".into(),
+        role: InputRole::Buffer,
+        ..gltf.inputs[0].clone()
+    });
+    s.enqueue(&gltf).unwrap();
+    let first = s.claim(&owner()).unwrap().unwrap();
+    let roles: Vec<_> = first.inputs.iter().map(|m| m.role).collect();
+    assert_eq!(roles, [InputRole::Mesh, InputRole::Mtl, InputRole::Texture]);
+    let second = s.claim(&owner()).unwrap().unwrap();
+    let roles: Vec<_> = second.inputs.iter().map(|m| m.role).collect();
+    assert_eq!(roles, [InputRole::Mesh, InputRole::Buffer]);
 }
 
 #[test]

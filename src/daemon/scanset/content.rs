@@ -1,5 +1,5 @@
-//! The tracker's work on file contents: reading an OBJ's `mtllib` names and an MTL's map
-//! names, and hashing a quiet set. None of it runs on the service loop: [`Content::spawn`]
+//! The tracker's work on file contents: reading an OBJ's `mtllib` names, an MTL's map
+//! names and a `.gltf`'s buffer and image URIs, and hashing a quiet set. None of it runs on the service loop: [`Content::spawn`]
 //! gives it one blocking thread, and each result comes back as a [`Done`] message (tests
 //! use [`Content::inline`], which does the work at once).
 //!
@@ -9,6 +9,8 @@
 //! rather than read or waited on.
 
 use super::StatSig;
+use crate::mesh::gltf::refs::{RefRole, external_refs};
+use crate::store::InputRole;
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read};
 use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
@@ -25,6 +27,29 @@ pub const MTLLIB_SCAN_BYTES: u64 = 8 << 20;
 /// lines per material (kilobytes); a bigger file is refused unread, with this limit named.
 pub const MTL_MAX_BYTES: u64 = 4 << 20;
 
+/// The largest `.gltf` JSON (after decompression) that is read for its references. A glTF
+/// whose buffers sit beside it is kilobytes of JSON; one with its buffers and images inline
+/// as `data:` URIs is about 4/3 of the binary data, which for a 400,000-triangle scan with
+/// its photo stays far below this. Streaming keeps memory at the largest single string.
+pub const GLTF_JSON_MAX_BYTES: u64 = 512 << 20;
+
+/// A file another file names, and what it is to the set.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Reference {
+    pub role: InputRole,
+    /// As written in the referring file (`\` already read as `/` where the format says so).
+    pub name: String,
+}
+
+impl Reference {
+    fn all(role: InputRole, names: Vec<String>) -> Vec<Reference> {
+        names
+            .into_iter()
+            .map(|name| Reference { role, name })
+            .collect()
+    }
+}
+
 /// Which references a file holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RefKind {
@@ -32,6 +57,8 @@ pub enum RefKind {
     Obj,
     /// Map file names of an MTL.
     Mtl,
+    /// External buffers and images of a `.gltf` (`.gz` read through the decoder).
+    Gltf,
 }
 
 /// One piece of content work.
@@ -67,7 +94,7 @@ pub enum Done {
         primary: PathBuf,
         path: PathBuf,
         sig: StatSig,
-        names: Result<Vec<String>, ContentError>,
+        names: Result<Vec<Reference>, ContentError>,
     },
     Hash {
         primary: PathBuf,
@@ -93,8 +120,13 @@ impl Work {
                 kind,
             } => {
                 let names = match kind {
-                    RefKind::Obj => obj_mtllibs(&path, sig),
-                    RefKind::Mtl => mtl_maps(&path, sig),
+                    RefKind::Obj => {
+                        obj_mtllibs(&path, sig).map(|n| Reference::all(InputRole::Mtl, n))
+                    }
+                    RefKind::Mtl => {
+                        mtl_maps(&path, sig).map(|n| Reference::all(InputRole::Texture, n))
+                    }
+                    RefKind::Gltf => gltf_refs(&path, sig),
                 };
                 Done::Refs {
                     primary,
@@ -223,9 +255,12 @@ pub(super) fn statement<'a>(line: &'a str, keyword: &str) -> Option<&'a str> {
     }
 }
 
-/// `mtllib` names of an OBJ, in order, from its first [`MTLLIB_SCAN_BYTES`] (a `.gz`
-/// through the decoder, the bound applying to the decompressed text).
-pub fn obj_mtllibs(path: &Path, sig: StatSig) -> Result<Vec<String>, ContentError> {
+/// The file's text, through the gzip decoder for a `.gz`, at most `bound` bytes of it.
+fn text_of(
+    path: &Path,
+    sig: StatSig,
+    bound: u64,
+) -> Result<std::io::Take<Box<dyn Read>>, ContentError> {
     let file = open_checked(path, sig)?;
     let gz = path
         .extension()
@@ -235,7 +270,13 @@ pub fn obj_mtllibs(path: &Path, sig: StatSig) -> Result<Vec<String>, ContentErro
     } else {
         Box::new(file)
     };
-    let mut reader = BufReader::with_capacity(1 << 16, reader.take(MTLLIB_SCAN_BYTES));
+    Ok(reader.take(bound))
+}
+
+/// `mtllib` names of an OBJ, in order, from its first [`MTLLIB_SCAN_BYTES`] (a `.gz`
+/// through the decoder, the bound applying to the decompressed text).
+pub fn obj_mtllibs(path: &Path, sig: StatSig) -> Result<Vec<String>, ContentError> {
+    let mut reader = BufReader::with_capacity(1 << 16, text_of(path, sig, MTLLIB_SCAN_BYTES)?);
     let mut names = Vec::new();
     let mut buf = Vec::new();
     loop {
@@ -261,6 +302,33 @@ pub fn obj_mtllibs(path: &Path, sig: StatSig) -> Result<Vec<String>, ContentErro
         }
     }
     Ok(names)
+}
+
+/// The external buffers and images a `.gltf` names, buffers first (a `.gz` through the
+/// decoder). A document above [`GLTF_JSON_MAX_BYTES`] or not glTF JSON is unreadable, with
+/// the reason; the loader would refuse the same file.
+pub fn gltf_refs(path: &Path, sig: StatSig) -> Result<Vec<Reference>, ContentError> {
+    let mut text = BufReader::with_capacity(1 << 16, text_of(path, sig, GLTF_JSON_MAX_BYTES + 1)?);
+    let refs = external_refs(&mut text);
+    if text.get_ref().limit() == 0 {
+        return Err(ContentError::Unreadable(format!(
+            "too large: {} holds more than {GLTF_JSON_MAX_BYTES} bytes of glTF JSON; not read (a .glb, or buffers and images beside the .gltf, are read)",
+            crate::text::escape_path(path)
+        )));
+    }
+    let refs = refs.map_err(|why| {
+        ContentError::Unreadable(format!("{}: {why}", crate::text::escape_path(path)))
+    })?;
+    Ok(refs
+        .into_iter()
+        .map(|r| Reference {
+            role: match r.role {
+                RefRole::Buffer => InputRole::Buffer,
+                RefRole::Image => InputRole::Texture,
+            },
+            name: r.name,
+        })
+        .collect())
 }
 
 /// File names an MTL refers to, in order. The caller refuses an MTL above

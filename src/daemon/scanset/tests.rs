@@ -86,7 +86,7 @@ fn map_file_name_strips_options_and_keeps_spaces() {
 #[test]
 fn james_set_has_obj_mtl_and_texture() {
     let spec = spec_of(Path::new(JAMES), &Path::new(JAMES).join("james.obj")).unwrap();
-    let roles: Vec<_> = spec.members.iter().map(|m| m.role).collect();
+    let roles: Vec<_> = spec.members.iter().map(|m| m.role.as_str()).collect();
     assert_eq!(roles, ["mesh", "mtl", "texture"]);
     assert!(spec.missing.is_empty(), "{:?}", spec.missing);
 }

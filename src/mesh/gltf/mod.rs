@@ -11,6 +11,7 @@
 mod accessor;
 pub mod glb;
 mod read;
+pub mod refs;
 mod write;
 
 pub use read::read;

@@ -172,24 +172,6 @@ fn decode_data_uri(uri: &str, before: u64, cap: u64) -> std::result::Result<Vec<
         .map_err(|e| format!("data URI is not valid base64: {e}"))
 }
 
-/// `%XX` escapes of a relative URI decoded into the file name it means.
-fn percent_decode(uri: &str) -> std::result::Result<String, String> {
-    let bytes = uri.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        if bytes[i] == b'%' {
-            let hex = uri.get(i + 1..i + 3).ok_or("a % escape cut short")?;
-            out.push(u8::from_str_radix(hex, 16).map_err(|_| format!("bad escape %{hex}"))?);
-            i += 3;
-        } else {
-            out.push(bytes[i]);
-            i += 1;
-        }
-    }
-    String::from_utf8(out).map_err(|_| "the decoded URI is not UTF-8".to_string())
-}
-
 /// Reads a file a URI names, resolved inside the scan's folder (as an OBJ's textures are).
 fn read_beside(path: &Path, uri: &str, options: &LoadOptions, what: &str) -> Result<Vec<u8>> {
     let file = resolve_beside(path, uri, options, what)?;
@@ -202,15 +184,8 @@ fn resolve_beside(
     options: &LoadOptions,
     what: &str,
 ) -> Result<std::path::PathBuf> {
-    if uri.contains(':') {
-        return Err(malformed(
-            path,
-            format!("{what} URI {uri:?}: only relative file names and data: URIs are read"),
-        ));
-    }
-    let name = texture::normalise_name(
-        &percent_decode(uri).map_err(|m| malformed(path, format!("{what} URI {uri:?}: {m}")))?,
-    );
+    let name = super::refs::file_name(uri)
+        .map_err(|m| malformed(path, format!("{what} URI {uri:?}: {m}")))?;
     let limit = (options.limits.max_file_bytes, Limit::FileBytes);
     let resolved = texture::resolve_in_scan(
         &texture::scan_folder(path),
@@ -255,7 +230,7 @@ fn load_materials(
                 ImageSource::File(uri) => {
                     let file = resolve_beside(path, uri, options, "image")?;
                     Some(Texture {
-                        name: texture::normalise_name(&percent_decode(uri).unwrap_or_default()),
+                        name: super::refs::file_name(uri).unwrap_or_default(),
                         path: file,
                         size: None,
                         embedded: None,
