@@ -25,12 +25,12 @@
 //!   (`v 1.0 2.` has two coordinates, `f 1/` has no texture index); a cut that happens to
 //!   leave a valid line cannot be told apart from a complete file.
 
-use super::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
-use super::error::{Location, MeshError, Result};
-use super::files;
-use super::limits::{InputLimits, Limit};
-use super::model::{Index, MapFile, Material, Mesh, Texture};
-use super::{mtl, texture};
+use crate::mesh::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
+use crate::mesh::error::{Location, MeshError, Result};
+use crate::mesh::files;
+use crate::mesh::limits::{InputLimits, Limit};
+use crate::mesh::model::{Index, MapFile, Material, Mesh, Texture};
+use crate::mesh::{mtl, texture};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
