@@ -532,15 +532,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
     fn into_mesh(self, collapsed: &[bool], lo: DVec3, extent: f64) -> Mesh {
         let mesh = self.mesh;
         let keep = self.params.method == Method::ClusterKeep;
-        let mut out = Mesh {
-            positions: mesh.positions.clone(),
-            texcoords: mesh.texcoords.clone(),
-            normals: mesh.normals.clone(),
-            colors: mesh.colors.clone(),
-            wedges: mesh.wedges.clone(),
-            materials: mesh.materials.clone(),
-            ..Default::default()
-        };
+        let mut out = mesh.without_triangles();
         // New vertex (and wedge) per collapsed cell of `cluster`.
         let nn = self.nodes.len();
         let mut cell_vertex = vec![NIL; nn];
