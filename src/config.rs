@@ -312,6 +312,28 @@ impl DaemonConfig {
     /// folders not nested, recipes parse. Returns every problem found.
     pub fn validate(&self) -> Vec<String> {
         let mut problems = Vec::new();
+        self.check_numbers(&mut problems);
+        problems.extend(self.limits.validate());
+        problems.extend(self.web.validate());
+        if self.watch.is_empty() {
+            problems.push("no [[watch]] folder configured".into());
+        }
+        self.check_dir("state_dir", &self.state_dir, &mut problems);
+        for (i, w) in self.watch.iter().enumerate() {
+            let name = format!("watch[{i}] ({})", crate::text::escape_path(&w.path));
+            check_watch_settings(&name, w, &mut problems);
+            self.check_dir(&format!("{name}: path"), &w.path, &mut problems);
+            self.check_dir(&format!("{name}: output"), &w.output, &mut problems);
+            self.check_watch_placement(i, &name, &mut problems);
+            if let Err(e) = load_recipe(&w.recipe) {
+                problems.push(format!("{name}: recipe: {e}"));
+            }
+        }
+        problems
+    }
+
+    /// The top-level numbers in their ranges.
+    fn check_numbers(&self, problems: &mut Vec<String>) {
         let positive = |name: &str, v: f64, problems: &mut Vec<String>| {
             if !(v.is_finite() && v > 0.0 && v <= MAX_SECS) {
                 problems.push(format!(
@@ -352,96 +374,60 @@ impl DaemonConfig {
                 self.job_cpu_secs
             ));
         }
-        positive("retry_base_secs", self.retry_base_secs, &mut problems);
-        positive("retry_max_secs", self.retry_max_secs, &mut problems);
-        positive("job_timeout_secs", self.job_timeout_secs, &mut problems);
-        positive("drain_timeout_secs", self.drain_timeout_secs, &mut problems);
-        positive("rescan_secs", self.rescan_secs, &mut problems);
+        positive("retry_base_secs", self.retry_base_secs, problems);
+        positive("retry_max_secs", self.retry_max_secs, problems);
+        positive("job_timeout_secs", self.job_timeout_secs, problems);
+        positive("drain_timeout_secs", self.drain_timeout_secs, problems);
+        positive("rescan_secs", self.rescan_secs, problems);
         positive(
             "incomplete_report_secs",
             self.incomplete_report_secs,
-            &mut problems,
+            problems,
         );
-        problems.extend(self.limits.validate());
-        problems.extend(self.web.validate());
-        if self.watch.is_empty() {
-            problems.push("no [[watch]] folder configured".into());
-        }
-        self.check_dir("state_dir", &self.state_dir, &mut problems);
+    }
+
+    /// Watch `i`'s output and the state folder outside its watched folder (lexically, and
+    /// again with every link resolved: an output that is a symlink into the watched folder
+    /// is inside it), and its watched folder apart from the later ones'.
+    fn check_watch_placement(&self, i: usize, name: &str, problems: &mut Vec<String>) {
+        let w = &self.watch[i];
         let state = absolute(&self.state_dir);
-        for (i, w) in self.watch.iter().enumerate() {
-            let name = format!("watch[{i}] ({})", crate::text::escape_path(&w.path));
-            if !(w.quiet_period_secs.is_finite()
-                && (0.05..=MAX_SECS).contains(&w.quiet_period_secs))
+        let root = absolute(&w.path);
+        let out = absolute(&w.output);
+        let (real_root, real_out) = (resolved(&root), resolved(&out));
+        if out.starts_with(&root)
+            || root.starts_with(&out)
+            || real_out.starts_with(&real_root)
+            || real_root.starts_with(&real_out)
+        {
+            problems.push(format!(
+                "{name}: output {} and the watched folder must not contain one another \
+                 (the daemon would process its own output)",
+                crate::text::escape_path(&w.output)
+            ));
+        }
+        if state.starts_with(&root) || resolved(&state).starts_with(&real_root) {
+            problems.push(format!(
+                "{name}: state_dir must not be inside the watched folder"
+            ));
+        }
+        for (j, other) in self.watch.iter().enumerate().skip(i + 1) {
+            let o = absolute(&other.path);
+            if o.starts_with(&root) || root.starts_with(&o) {
+                problems.push(format!(
+                    "{name} and watch[{j}] ({}) overlap; watched folders must be disjoint",
+                    crate::text::escape_path(&other.path)
+                ));
+            }
+            if absolute(&other.output).starts_with(&root)
+                || resolved(&other.output).starts_with(&real_root)
             {
                 problems.push(format!(
-                    "{name}: quiet_period_secs must be 0.05..={MAX_SECS}, not {}",
-                    w.quiet_period_secs
+                    "watch[{j}]: output is inside watched folder {}",
+                    crate::text::escape_path(&w.path)
                 ));
-            }
-            if !(w.poll_secs.is_finite() && (0.0..=MAX_SECS).contains(&w.poll_secs)) {
-                problems.push(format!(
-                    "{name}: poll_secs must be 0 (use file events) or up to {MAX_SECS}, not {}",
-                    w.poll_secs
-                ));
-            }
-            for p in w.include.iter().chain(&w.exclude) {
-                if p.is_empty() {
-                    problems.push(format!("{name}: empty include/exclude pattern"));
-                }
-            }
-            if let Some(m) = &w.marker
-                && (m.is_empty() || m.contains('/'))
-            {
-                problems.push(format!(
-                    "{name}: marker must be a file name such as \"{{stem}}.done\""
-                ));
-            }
-            self.check_dir(&format!("{name}: path"), &w.path, &mut problems);
-            self.check_dir(&format!("{name}: output"), &w.output, &mut problems);
-            let root = absolute(&w.path);
-            let out = absolute(&w.output);
-            // Lexically, and again with every link resolved: an output that is a symlink
-            // into the watched folder is inside it.
-            let (real_root, real_out) = (resolved(&root), resolved(&out));
-            if out.starts_with(&root)
-                || root.starts_with(&out)
-                || real_out.starts_with(&real_root)
-                || real_root.starts_with(&real_out)
-            {
-                problems.push(format!(
-                    "{name}: output {} and the watched folder must not contain one another \
-                     (the daemon would process its own output)",
-                    crate::text::escape_path(&w.output)
-                ));
-            }
-            if state.starts_with(&root) || resolved(&state).starts_with(&real_root) {
-                problems.push(format!(
-                    "{name}: state_dir must not be inside the watched folder"
-                ));
-            }
-            for (j, other) in self.watch.iter().enumerate().skip(i + 1) {
-                let o = absolute(&other.path);
-                if o.starts_with(&root) || root.starts_with(&o) {
-                    problems.push(format!(
-                        "{name} and watch[{j}] ({}) overlap; watched folders must be disjoint",
-                        crate::text::escape_path(&other.path)
-                    ));
-                }
-                if absolute(&other.output).starts_with(&root)
-                    || resolved(&other.output).starts_with(&real_root)
-                {
-                    problems.push(format!(
-                        "watch[{j}]: output is inside watched folder {}",
-                        crate::text::escape_path(&w.path)
-                    ));
-                }
-            }
-            if let Err(e) = load_recipe(&w.recipe) {
-                problems.push(format!("{name}: recipe: {e}"));
             }
         }
-        problems
     }
 
     fn check_dir(&self, name: &str, path: &Path, problems: &mut Vec<String>) {
@@ -556,6 +542,34 @@ pub fn absolute(path: &Path) -> PathBuf {
         }
     }
     out
+}
+
+/// One watched folder's own settings in their ranges.
+fn check_watch_settings(name: &str, w: &WatchConfig, problems: &mut Vec<String>) {
+    if !(w.quiet_period_secs.is_finite() && (0.05..=MAX_SECS).contains(&w.quiet_period_secs)) {
+        problems.push(format!(
+            "{name}: quiet_period_secs must be 0.05..={MAX_SECS}, not {}",
+            w.quiet_period_secs
+        ));
+    }
+    if !(w.poll_secs.is_finite() && (0.0..=MAX_SECS).contains(&w.poll_secs)) {
+        problems.push(format!(
+            "{name}: poll_secs must be 0 (use file events) or up to {MAX_SECS}, not {}",
+            w.poll_secs
+        ));
+    }
+    for p in w.include.iter().chain(&w.exclude) {
+        if p.is_empty() {
+            problems.push(format!("{name}: empty include/exclude pattern"));
+        }
+    }
+    if let Some(m) = &w.marker
+        && (m.is_empty() || m.contains('/'))
+    {
+        problems.push(format!(
+            "{name}: marker must be a file name such as \"{{stem}}.done\""
+        ));
+    }
 }
 
 #[cfg(test)]

@@ -5,7 +5,10 @@
 use crate::daemon::publish::SIDECAR_SUFFIX;
 use crate::mesh::files::open_regular;
 use crate::mesh::ply::PlyEncoding;
-use crate::mesh::{InputLimits, LoadOptions, Mesh, MeshError, SaveOptions, load, save_reserving};
+use crate::mesh::{
+    InputLimits, LoadOptions, LoadReport, Mesh, MeshError, SaveOptions, load, save_reserving,
+};
+use crate::preview::Preview;
 use crate::recipe::runner::{Progress, RunOutcome, StepError, run_recipe};
 use crate::recipe::{OutputFormat, PlyEncodingSpec, Recipe, Step};
 use crate::report::{
@@ -258,46 +261,11 @@ pub fn process_scan_with_options(
 
     progress.stage(0, total_stages, "load");
     let load_start = Instant::now();
-    let options = LoadOptions {
-        weld_tolerance: recipe.input.weld_tolerance,
-        texture_override: process_options.texture.clone(),
-        limits: process_options.limits.clone(),
-        ..LoadOptions::default()
-    };
-    // The input's hash is read on a thread of its own beside the load (a second read of
-    // the file, from the page cache; ~40 ms for a 400k-triangle OBJ, much of the load is
-    // sequential).
-    let (loaded, input_hash) = std::thread::scope(|scope| {
-        let hash = scope.spawn(|| hash_input(input));
-        let loaded = load(input, &options);
-        let hash = hash
-            .join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        (loaded, hash)
-    });
-    let (mut mesh, load_report) = loaded?;
-    // The file's text and the parser's arrays are gone: give their memory back before the
-    // steps allocate theirs (see `memory`).
-    crate::memory::release_freed();
-    let mut input_files = vec![input_hash?];
-    for material in &mesh.materials {
-        // Each distinct file once, however many materials name it; an embedded image is
-        // part of the scan's file, already hashed.
-        if let Some(texture) = &material.diffuse_texture
-            && texture.embedded.is_none()
-            && !input_files.iter().any(|f| f.path == texture.path)
-        {
-            input_files.push(hash_input(&texture.path)?);
-        }
-    }
-    if renumbers_anyway(recipe) {
-        // The output's numbering is new anyway: number the mesh for locality first, which
-        // makes every step faster where the file's order is unrelated to space.
-        let start = Instant::now();
-        mesh.reorder_for_locality();
-        let ms = start.elapsed().as_secs_f64() * 1e3;
-        tracing::debug!(ms, "vertices and triangles renumbered for locality");
-    }
+    let Loaded {
+        mut mesh,
+        report: load_report,
+        files: input_files,
+    } = load_input(input, process_options, recipe)?;
     let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
     let input_counts = MeshCounts::of(&mesh);
     tracing::info!(input = %crate::text::escape_path(input), faces = input_counts.faces, load_ms, "loaded");
@@ -317,40 +285,7 @@ pub fn process_scan_with_options(
 
     progress.stage(total_stages - 1, total_stages, "write");
     let write_start = Instant::now();
-    let stem = output_stem(input);
-    let staging = Staging::new(out_dir)?;
-    let Written { supporting, meshes } = write_mesh(&mesh, recipe, &staging.0, &stem)?;
-    let preview = preview.and_then(|preview| {
-        let path = staging.0.join(preview_file_name(&stem));
-        match crate::preview::write_png(&preview.image, &path) {
-            Ok(()) => Some((path, preview.figures)),
-            Err(e) => {
-                tracing::warn!(error = %e, "no preview");
-                None
-            }
-        }
-    });
-    // Supporting files and the preview first, the mesh files last.
-    let mut files = supporting;
-    files.extend(preview.iter().map(|(path, _)| path.clone()));
-    files.extend(meshes);
-    let mut published = publish(&staging.0, &files, out_dir)?;
-    drop(staging);
-    let preview = match preview {
-        Some((staged, figures)) => {
-            let index = files.iter().position(|f| *f == staged).unwrap_or_default();
-            let path = published.remove(index);
-            Some(PreviewReport {
-                file: FileHash::of(&path).map_err(|e| output_error(&path, e))?,
-                figures,
-            })
-        }
-        None => None,
-    };
-    let output_files = published
-        .iter()
-        .map(|p| FileHash::of(p).map_err(|e| output_error(p, e)))
-        .collect::<Result<Vec<_>, _>>()?;
+    let (output_files, preview) = write_outputs(&mesh, recipe, input, out_dir, preview)?;
     let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
 
     Ok(Report {
@@ -378,4 +313,111 @@ pub fn process_scan_with_options(
         write_ms,
         total_ms: total_start.elapsed().as_secs_f64() * 1e3,
     })
+}
+
+/// A scan as loaded, with the hashes of its files (the mesh file first, then each texture
+/// file once).
+struct Loaded {
+    mesh: Mesh,
+    report: LoadReport,
+    files: Vec<FileHash>,
+}
+
+/// Loads the scan under the recipe's input settings and the limits, hashes its files and,
+/// when the recipe renumbers anyway, numbers the mesh for locality.
+fn load_input(
+    input: &Path,
+    process_options: &ProcessOptions,
+    recipe: &Recipe,
+) -> Result<Loaded, ProcessError> {
+    let options = LoadOptions {
+        weld_tolerance: recipe.input.weld_tolerance,
+        texture_override: process_options.texture.clone(),
+        limits: process_options.limits.clone(),
+        ..LoadOptions::default()
+    };
+    // The input's hash is read on a thread of its own beside the load (a second read of
+    // the file, from the page cache, while much of the load is sequential).
+    let (loaded, input_hash) = std::thread::scope(|scope| {
+        let hash = scope.spawn(|| hash_input(input));
+        let loaded = load(input, &options);
+        let hash = hash
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (loaded, hash)
+    });
+    let (mut mesh, report) = loaded?;
+    // The file's text and the parser's arrays are gone: give their memory back before the
+    // steps allocate theirs (see `memory`).
+    crate::memory::release_freed();
+    let mut files = vec![input_hash?];
+    for material in &mesh.materials {
+        // Each distinct file once, however many materials name it; an embedded image is
+        // part of the scan's file, already hashed.
+        if let Some(texture) = &material.diffuse_texture
+            && texture.embedded.is_none()
+            && !files.iter().any(|f| f.path == texture.path)
+        {
+            files.push(hash_input(&texture.path)?);
+        }
+    }
+    if renumbers_anyway(recipe) {
+        // The output's numbering is new anyway: number the mesh for locality first, which
+        // makes every step faster where the file's order is unrelated to space.
+        let start = Instant::now();
+        mesh.reorder_for_locality();
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        tracing::debug!(ms, "vertices and triangles renumbered for locality");
+    }
+    Ok(Loaded {
+        mesh,
+        report,
+        files,
+    })
+}
+
+/// Writes the result, its supporting files and the preview into a staging folder and
+/// publishes them into `out_dir` (supporting files and the preview first, the mesh files
+/// last); returns the published files' hashes and the preview's report.
+fn write_outputs(
+    mesh: &Mesh,
+    recipe: &Recipe,
+    input: &Path,
+    out_dir: &Path,
+    preview: Option<Preview>,
+) -> Result<(Vec<FileHash>, Option<PreviewReport>), ProcessError> {
+    let stem = output_stem(input);
+    let staging = Staging::new(out_dir)?;
+    let Written { supporting, meshes } = write_mesh(mesh, recipe, &staging.0, &stem)?;
+    let preview = preview.and_then(|preview| {
+        let path = staging.0.join(preview_file_name(&stem));
+        match crate::preview::write_png(&preview.image, &path) {
+            Ok(()) => Some((path, preview.figures)),
+            Err(e) => {
+                tracing::warn!(error = %e, "no preview");
+                None
+            }
+        }
+    });
+    let mut files = supporting;
+    files.extend(preview.iter().map(|(path, _)| path.clone()));
+    files.extend(meshes);
+    let mut published = publish(&staging.0, &files, out_dir)?;
+    drop(staging);
+    let preview = match preview {
+        Some((staged, figures)) => {
+            let index = files.iter().position(|f| *f == staged).unwrap_or_default();
+            let path = published.remove(index);
+            Some(PreviewReport {
+                file: FileHash::of(&path).map_err(|e| output_error(&path, e))?,
+                figures,
+            })
+        }
+        None => None,
+    };
+    let output_files = published
+        .iter()
+        .map(|p| FileHash::of(p).map_err(|e| output_error(p, e)))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((output_files, preview))
 }

@@ -791,14 +791,9 @@ impl Tracker {
         if t.busy || t.retry_at.is_some_and(|at| now < at) {
             return Vec::new();
         }
-        let root_index = t.root_index;
-        let Some(confine) = self.confine(root_index) else {
+        let Some(confine) = self.confine(t.root_index) else {
             return Vec::new();
         };
-        let root = &self.roots[root_index];
-        let marker_ready = root.marker_path(primary).is_some_and(|m| m.is_file());
-        let quiet = root.quiet;
-        let root_key = root.path.to_string_lossy().into_owned();
         let shown = escape_path(primary);
         let look = match confine.look(primary) {
             Look::Regular { sig, real, rel } => (sig, real, rel),
@@ -813,35 +808,60 @@ impl Tracker {
                 return self.stuck(primary, format!("cannot read {shown}: {e}"), now);
             }
         };
-        let primary_sig = look.0;
-        // Parse references only once the primary has held still for one look, so that a
-        // file being written is not re-read on every event.
+        match self.spec_of(primary, look, &confine) {
+            Ok((spec, changing)) => self.settle(primary, spec, changing, now),
+            Err(SpecError::Read(work)) => self.submit(primary, work, now),
+            Err(SpecError::Failed(reason)) => self.stuck(primary, reason, now),
+        }
+    }
+
+    /// The set a primary names, and whether the primary (an OBJ or `.gltf`) is still
+    /// changing. Its references are parsed only once it has held still for one look, so that a file
+    /// being written is not re-read on every event.
+    fn spec_of(
+        &self,
+        primary: &Path,
+        look: (StatSig, PathBuf, RelPath),
+        confine: &Confine,
+    ) -> Result<(SetSpec, bool), SpecError> {
+        let t = &self.sets[primary];
         let previous_primary = t.sigs.first().copied().flatten();
         let changing = references_of(primary).is_some()
-            && !(previous_primary == Some(primary_sig) || t.sigs.is_empty());
-        let spec = if changing {
-            let (sig, real, rel) = look;
-            SetSpec {
-                members: vec![Member {
-                    path: primary.to_path_buf(),
-                    real,
-                    rel,
-                    role: InputRole::Mesh,
-                    sig,
-                }],
-                missing: vec!["(mesh file still changing)".into()],
-                refused: Vec::new(),
-            }
-        } else {
-            match set_spec(primary, look, &confine, &self.refs) {
-                Ok(s) => s,
-                Err(SpecError::Read(work)) => return self.submit(primary, work, now),
-                Err(SpecError::Failed(reason)) => return self.stuck(primary, reason, now),
-            }
+            && !(previous_primary == Some(look.0) || t.sigs.is_empty());
+        if !changing {
+            return set_spec(primary, look, confine, &self.refs).map(|spec| (spec, false));
+        }
+        let (sig, real, rel) = look;
+        let spec = SetSpec {
+            members: vec![Member {
+                path: primary.to_path_buf(),
+                real,
+                rel,
+                role: InputRole::Mesh,
+                sig,
+            }],
+            missing: vec!["(mesh file still changing)".into()],
+            refused: Vec::new(),
         };
-        let sigs = spec.sigs();
+        Ok((spec, true))
+    }
+
+    /// What becomes of a set after a look: nothing yet (unchanged, incomplete, not quiet),
+    /// reported as waiting or stuck, recognised as already recorded, or handed over to be
+    /// hashed.
+    fn settle(
+        &mut self,
+        primary: &Path,
+        spec: SetSpec,
+        changing: bool,
+        now: Instant,
+    ) -> Vec<Event> {
         let incomplete_after = self.incomplete_after;
         let t = self.sets.get_mut(primary).expect("tracked");
+        let root = &self.roots[t.root_index];
+        let marker_ready = root.marker_path(primary).is_some_and(|m| m.is_file());
+        let quiet = root.quiet;
+        let sigs = spec.sigs();
         t.retry_at = None;
         t.changing = changing;
         if sigs != t.sigs {
@@ -866,22 +886,39 @@ impl Tracker {
             return Vec::new();
         }
         // Already recorded with these exact files (e.g. after a restart): no need to hash.
-        if let Some(known) = self.known.get(&(root_key, t.rel.clone())) {
-            let same = known.len() == spec.members.len()
-                && spec.members.iter().zip(known).all(|(m, k)| {
-                    m.rel == k.0 && m.sig.size == k.1 && m.sig.mtime_ns == k.2 && m.sig.ino == k.3
-                });
-            if same {
-                t.handled = Some(sigs);
-                if t.reported.take().is_some() {
-                    return vec![Event::NotWaiting {
-                        root_index,
-                        rel_path: t.rel.clone(),
-                    }];
-                }
-                return Vec::new();
+        if self.is_known(primary, &spec) {
+            let t = self.sets.get_mut(primary).expect("tracked");
+            t.handled = Some(sigs);
+            if t.reported.take().is_some() {
+                return vec![Event::NotWaiting {
+                    root_index: t.root_index,
+                    rel_path: t.rel.clone(),
+                }];
             }
+            return Vec::new();
         }
+        self.hash(primary, spec, now)
+    }
+
+    /// Whether the set is recorded in the store with exactly these files.
+    fn is_known(&self, primary: &Path, spec: &SetSpec) -> bool {
+        let t = &self.sets[primary];
+        let root_key = self.roots[t.root_index].path.to_string_lossy().into_owned();
+        self.known
+            .get(&(root_key, t.rel.clone()))
+            .is_some_and(|known| {
+                known.len() == spec.members.len()
+                    && spec.members.iter().zip(known).all(|(m, k)| {
+                        m.rel == k.0
+                            && m.sig.size == k.1
+                            && m.sig.mtime_ns == k.2
+                            && m.sig.ino == k.3
+                    })
+            })
+    }
+
+    /// Hands a complete, quiet set over to be hashed, unless it is above the size limit.
+    fn hash(&mut self, primary: &Path, spec: SetSpec, now: Instant) -> Vec<Event> {
         let total: u64 = spec.members.iter().map(|m| m.sig.size).sum();
         if total > self.max_input_bytes {
             let reason = format!(
@@ -895,6 +932,7 @@ impl Tracker {
             .iter()
             .map(|m| (m.real.clone(), m.sig))
             .collect();
+        let t = self.sets.get_mut(primary).expect("tracked");
         t.hashing = Some(spec.members);
         self.submit(
             primary,

@@ -123,72 +123,15 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
     tracing::info!(config = %origin, version = env!("CARGO_PKG_VERSION"), "scanmill daemon starting");
     // Make the folders first when asked, so that validation sees them.
     if config.create_missing_dirs {
-        let dirs = std::iter::once(&config.state_dir)
-            .chain(config.watch.iter().flat_map(|w| [&w.path, &w.output]));
-        for d in dirs {
-            if !d.exists() {
-                std::fs::create_dir_all(d).map_err(|source| ServiceError::Io {
-                    context: format!("create {}", d.display()),
-                    source,
-                })?;
-                tracing::info!("created {}", d.display());
-            }
-        }
+        create_missing_dirs(&config)?;
     }
     let problems = config.validate();
     if !problems.is_empty() {
         return Err(ServiceError::Config { origin, problems });
     }
     let lock = StateLock::acquire(&config.state_dir).map_err(ServiceError::Locked)?;
-    let mut store = Store::open(&config.database_path())?;
-    let requeued = store.recover_running()?;
-    if requeued > 0 {
-        tracing::warn!(
-            requeued,
-            "jobs left running by a previous process are queued again"
-        );
-    }
-    let mut known = Known::new();
-    for (root, rel, members) in store.known_inputs()? {
-        known.insert((root, rel), members);
-    }
-    let mut roots = Vec::new();
-    let mut specs = Vec::new();
-    let now = Instant::now();
-    for w in &config.watch {
-        let recipe = load_recipe(&w.recipe).map_err(|e| ServiceError::Config {
-            origin: origin.clone(),
-            problems: vec![e.to_string()],
-        })?;
-        let path = absolute(&w.path);
-        let output = absolute(&w.output);
-        let removed = super::publish::clean_staging(&output);
-        if removed > 0 {
-            tracing::info!(removed, output = %output.display(), "removed stale temporaries");
-        }
-        specs.push(RootSpec {
-            path: path.clone(),
-            filter: Filter {
-                include: w.include.clone(),
-                exclude: w.exclude.clone(),
-            },
-            quiet: secs(w.quiet_period_secs),
-            marker: w.marker.clone(),
-            follow_symlinks: w.follow_symlinks,
-        });
-        roots.push(RootRuntime {
-            identity: None,
-            path,
-            output,
-            recipe_hash: recipe.hash(),
-            recipe: Arc::new(recipe),
-            recipe_path: w.recipe.clone(),
-            poll: (w.poll_secs > 0.0).then(|| secs(w.poll_secs)),
-            watcher: None,
-            walk_due: now,
-            overflow: Arc::new(AtomicBool::new(false)),
-        });
-    }
+    let (store, known) = open_store(&config)?;
+    let (roots, specs) = watched_roots(&config, &origin)?;
     // File contents are read and hashed on their own thread; results come back to the
     // loop as messages, so no input can hold the loop (or the watchdog ping) up.
     let (content_tx, content_rx) = mpsc::unbounded_channel::<Done>();
@@ -243,6 +186,86 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
     let result = runtime.block_on(service.main_loop(results_rx, hints_rx, content_rx));
     drop(lock);
     result
+}
+
+/// Creates the state folder and every watched and output folder that does not exist.
+fn create_missing_dirs(config: &DaemonConfig) -> Result<(), ServiceError> {
+    let dirs = std::iter::once(&config.state_dir)
+        .chain(config.watch.iter().flat_map(|w| [&w.path, &w.output]));
+    for d in dirs {
+        if !d.exists() {
+            std::fs::create_dir_all(d).map_err(|source| ServiceError::Io {
+                context: format!("create {}", d.display()),
+                source,
+            })?;
+            tracing::info!("created {}", d.display());
+        }
+    }
+    Ok(())
+}
+
+/// Opens the job store, queues again the jobs a previous process left running, and reads
+/// the input sets it has recorded.
+fn open_store(config: &DaemonConfig) -> Result<(Store, Known), ServiceError> {
+    let mut store = Store::open(&config.database_path())?;
+    let requeued = store.recover_running()?;
+    if requeued > 0 {
+        tracing::warn!(
+            requeued,
+            "jobs left running by a previous process are queued again"
+        );
+    }
+    let mut known = Known::new();
+    for (root, rel, members) in store.known_inputs()? {
+        known.insert((root, rel), members);
+    }
+    Ok((store, known))
+}
+
+/// Each watched folder as the loop runs it and as the tracker sees it, its recipe loaded
+/// and stale temporaries removed from its output folder.
+fn watched_roots(
+    config: &DaemonConfig,
+    origin: &ConfigSource,
+) -> Result<(Vec<RootRuntime>, Vec<RootSpec>), ServiceError> {
+    let mut roots = Vec::new();
+    let mut specs = Vec::new();
+    let now = Instant::now();
+    for w in &config.watch {
+        let recipe = load_recipe(&w.recipe).map_err(|e| ServiceError::Config {
+            origin: origin.clone(),
+            problems: vec![e.to_string()],
+        })?;
+        let path = absolute(&w.path);
+        let output = absolute(&w.output);
+        let removed = super::publish::clean_staging(&output);
+        if removed > 0 {
+            tracing::info!(removed, output = %output.display(), "removed stale temporaries");
+        }
+        specs.push(RootSpec {
+            path: path.clone(),
+            filter: Filter {
+                include: w.include.clone(),
+                exclude: w.exclude.clone(),
+            },
+            quiet: secs(w.quiet_period_secs),
+            marker: w.marker.clone(),
+            follow_symlinks: w.follow_symlinks,
+        });
+        roots.push(RootRuntime {
+            identity: None,
+            path,
+            output,
+            recipe_hash: recipe.hash(),
+            recipe: Arc::new(recipe),
+            recipe_path: w.recipe.clone(),
+            poll: (w.poll_secs > 0.0).then(|| secs(w.poll_secs)),
+            watcher: None,
+            walk_due: now,
+            overflow: Arc::new(AtomicBool::new(false)),
+        });
+    }
+    Ok((roots, specs))
 }
 
 /// Starts the web dashboard on the service's runtime (docs/service.md "Web dashboard and

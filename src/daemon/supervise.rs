@@ -204,62 +204,21 @@ fn spawn_and_wait(
             .name(format!("scanmill-job-{}-err", request.job_id))
             .spawn(move || forward_stderr(stderr, &tail))?
     };
-    let deadline = start + request.limits.wall;
-    let mut final_event = None;
-    let mut protocol_error = None;
-    let mut killed = None;
-    loop {
-        if killed.is_none() {
-            if gate.is_abandoned() {
-                killed = Some(KillReason::Abandoned);
-            } else if Instant::now() >= deadline {
-                killed = Some(KillReason::Deadline);
-            }
-            if killed.is_some() {
-                kill(pid);
-            }
-        }
-        let wait = deadline
-            .saturating_duration_since(Instant::now())
-            .clamp(Duration::from_millis(1), GATE_POLL);
-        match rx.recv_timeout(wait) {
-            Ok(Piped::Line(bytes)) => match Line::decode(&bytes) {
-                Ok(Line {
-                    event: Event::Stage { index, total, name },
-                    ..
-                }) => on_stage(index, total, &name),
-                Ok(line) => {
-                    final_event = Some(line.event);
-                    break;
-                }
-                Err(e) => {
-                    protocol_error.get_or_insert(e);
-                }
-            },
-            Ok(Piped::TooLong) => {
-                protocol_error.get_or_insert_with(|| {
-                    format!(
-                        "a line longer than {} bytes from the worker",
-                        protocol::MAX_LINE_BYTES
-                    )
-                });
-            }
-            Err(RecvTimeoutError::Timeout) => continue,
-            Err(RecvTimeoutError::Disconnected) => break,
-        }
-        if protocol_error.is_some() && killed.is_none() {
-            killed = Some(KillReason::Protocol);
-            kill(pid);
-        }
-    }
+    let watch = Watch {
+        pid,
+        gate,
+        deadline: start + request.limits.wall,
+    };
+    let Heard {
+        final_event,
+        protocol_error,
+        mut killed,
+    } = watch.listen(&rx, on_stage);
     if final_event.is_some() && protocol_error.is_none() && killed.is_none() {
         // The worker has said all it will say. Its exit (freeing a large scan's memory takes
         // tens of milliseconds) is not waited for: a reaper does that in the background.
         let wall = start.elapsed();
-        let stderr_tail = tail
-            .lock()
-            .map(|t| t.iter().cloned().collect())
-            .unwrap_or_default();
+        let stderr_tail = tail_of(&tail);
         reap_later(pid, request.job_id, reader, forwarder);
         std::mem::forget(child);
         return Ok(Ended {
@@ -273,32 +232,12 @@ fn spawn_and_wait(
             stderr_tail,
         });
     }
-    // Standard output is closed without a final word: the worker is exiting (or has
-    // closed it, which the protocol does not allow: then it is killed after the deadline
-    // like any other).
-    let (status, rusage) = loop {
-        match reap(pid, Duration::from_millis(50)) {
-            Some(r) => break r,
-            None if killed.is_none() && (gate.is_abandoned() || Instant::now() >= deadline) => {
-                killed = Some(if gate.is_abandoned() {
-                    KillReason::Abandoned
-                } else {
-                    KillReason::Deadline
-                });
-                kill(pid);
-            }
-            None => {}
-        }
-    };
+    let (status, rusage) = watch.reap(&mut killed);
     let wall = start.elapsed();
     let _ = reader.join();
     let _ = forwarder.join();
     // The child was reaped by wait4; std's handle must not wait for it again.
     std::mem::forget(child);
-    let stderr_tail = tail
-        .lock()
-        .map(|t| t.iter().cloned().collect())
-        .unwrap_or_default();
     Ok(Ended {
         status: Some(status),
         rusage,
@@ -306,8 +245,118 @@ fn spawn_and_wait(
         final_event,
         protocol_error,
         killed,
-        stderr_tail,
+        stderr_tail: tail_of(&tail),
     })
+}
+
+/// The last lines of the worker's standard error.
+fn tail_of(tail: &Mutex<VecDeque<String>>) -> Vec<String> {
+    tail.lock()
+        .map(|t| t.iter().cloned().collect())
+        .unwrap_or_default()
+}
+
+/// A running worker, watched against its deadline and the publish gate.
+struct Watch<'g> {
+    pid: libc::pid_t,
+    gate: &'g PublishGate,
+    deadline: Instant,
+}
+
+/// What the worker said on its standard output before it closed it or was killed.
+struct Heard {
+    final_event: Option<Event>,
+    protocol_error: Option<String>,
+    killed: Option<KillReason>,
+}
+
+impl Watch<'_> {
+    /// Why the worker must be killed now, if it must: the job was abandoned, or its
+    /// deadline has passed.
+    fn kill_reason(&self) -> Option<KillReason> {
+        if self.gate.is_abandoned() {
+            Some(KillReason::Abandoned)
+        } else if Instant::now() >= self.deadline {
+            Some(KillReason::Deadline)
+        } else {
+            None
+        }
+    }
+
+    /// Reads the worker's lines until its final word or until its output closes: stages go
+    /// to `on_stage`; a line that breaks the protocol gets the worker killed, as do the
+    /// deadline and an abandoned job.
+    fn listen(
+        &self,
+        rx: &mpsc::Receiver<Piped>,
+        on_stage: &mut dyn FnMut(usize, usize, &str),
+    ) -> Heard {
+        let mut heard = Heard {
+            final_event: None,
+            protocol_error: None,
+            killed: None,
+        };
+        loop {
+            if heard.killed.is_none() {
+                heard.killed = self.kill_reason();
+                if heard.killed.is_some() {
+                    kill(self.pid);
+                }
+            }
+            let wait = self
+                .deadline
+                .saturating_duration_since(Instant::now())
+                .clamp(Duration::from_millis(1), GATE_POLL);
+            match rx.recv_timeout(wait) {
+                Ok(Piped::Line(bytes)) => match Line::decode(&bytes) {
+                    Ok(Line {
+                        event: Event::Stage { index, total, name },
+                        ..
+                    }) => on_stage(index, total, &name),
+                    Ok(line) => {
+                        heard.final_event = Some(line.event);
+                        break;
+                    }
+                    Err(e) => {
+                        heard.protocol_error.get_or_insert(e);
+                    }
+                },
+                Ok(Piped::TooLong) => {
+                    heard.protocol_error.get_or_insert_with(|| {
+                        format!(
+                            "a line longer than {} bytes from the worker",
+                            protocol::MAX_LINE_BYTES
+                        )
+                    });
+                }
+                Err(RecvTimeoutError::Timeout) => continue,
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if heard.protocol_error.is_some() && heard.killed.is_none() {
+                heard.killed = Some(KillReason::Protocol);
+                kill(self.pid);
+            }
+        }
+        heard
+    }
+
+    /// Waits for the worker to exit. Standard output is closed without a final word: the
+    /// worker is exiting (or has closed it, which the protocol does not allow: then it is
+    /// killed after the deadline like any other).
+    fn reap(&self, killed: &mut Option<KillReason>) -> (libc::c_int, libc::rusage) {
+        loop {
+            match reap(self.pid, Duration::from_millis(50)) {
+                Some(r) => return r,
+                None if killed.is_none() => {
+                    if let Some(reason) = self.kill_reason() {
+                        *killed = Some(reason);
+                        kill(self.pid);
+                    }
+                }
+                None => {}
+            }
+        }
+    }
 }
 
 /// How long a worker that has given its final word may take to exit before it is killed.

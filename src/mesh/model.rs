@@ -94,6 +94,20 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// The same vertices, wedges and materials, without triangles: the start of a mesh
+    /// that re-triangulates this one.
+    pub fn without_triangles(&self) -> Mesh {
+        Mesh {
+            positions: self.positions.clone(),
+            texcoords: self.texcoords.clone(),
+            normals: self.normals.clone(),
+            colors: self.colors.clone(),
+            wedges: self.wedges.clone(),
+            materials: self.materials.clone(),
+            ..Default::default()
+        }
+    }
+
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
     }

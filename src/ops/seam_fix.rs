@@ -132,130 +132,24 @@ pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFi
     if !mesh.has_texcoords() || !input.has_texcoords() {
         return report;
     }
-    // Positions normalised into [−1, 1]³ (footnote 3 of §3.3).
-    let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
-    let half = ((hi - lo).max_element() * 0.5).max(f64::MIN_POSITIVE);
-    let factor = params.factor();
-    let by_origin: Option<Vec<u32>> = (!input.triangle_origins.is_empty()).then(|| {
-        let size = input
-            .triangle_origins
-            .iter()
-            .max()
-            .map_or(0, |&m| m as usize + 1);
-        let mut map = vec![u32::MAX; size];
-        for (t, &o) in input.triangle_origins.iter().enumerate() {
-            map[o as usize] = t as u32;
-        }
-        map
-    });
-    let origin_in_input = |t: usize| -> usize {
-        let o = mesh.triangle_origin(t) as usize;
-        match &by_origin {
-            Some(map) => map.get(o).map_or(usize::MAX, |&r| r as usize),
-            None => o,
-        }
-    };
-    // For in-place repairs: the input's charts, a closest-point index over it, and the
-    // triangles around each wedge of the result.
-    let finite = input.positions.iter().all(|p| p.is_finite());
-    // The charts are sequential; they are made beside the tree, whose build is parallel.
-    let (input_charts, bvh) = rayon::join(
-        || charts(input),
-        || finite.then(|| TriangleBvh::new(input, (0..input.triangles.len() as u32).collect())),
-    );
-    let around = WedgeTriangles::of(mesh);
-    let shared_fix = |w: Index| -> Option<DVec2> {
-        let bvh = bvh.as_ref()?;
-        let mut origins = around
-            .of_wedge(w)
-            .iter()
-            .map(|&t| origin_in_input(t as usize));
-        let first = origins.next()?;
-        let chart = *input_charts.get(first)?;
-        if !origins.all(|o| input_charts.get(o) == Some(&chart)) {
-            return None;
-        }
-        let p = mesh.positions[mesh.wedges[w as usize].vertex as usize];
-        if !p.is_finite() {
-            return None;
-        }
-        let start = bvh.hit_on(p, first as u32);
-        let hit = bvh.closest(p, Some(start))?;
-        (input_charts[hit.triangle as usize] == chart)
-            .then(|| uv_at(input, &hit))
-            .flatten()
-    };
-    #[derive(Clone, Copy)]
-    enum Decision {
-        Undecided,
-        Shared(DVec2),
-        Split,
-    }
+    let origins = Origins::new(input);
+    let shared = SharedFix::new(mesh, input, &origins);
+    let detect = Detect::new(input, params);
     let mut decisions = vec![Decision::Undecided; mesh.wedges.len()];
     let mut splits: Vec<(usize, usize, DVec2)> = Vec::new();
     for t in 0..mesh.triangles.len() {
-        let o = mesh.triangle_origin(t) as usize;
-        let o = match &by_origin {
-            Some(map) => map.get(o).map_or(usize::MAX, |&r| r as usize),
-            None => o,
-        };
-        let corners = mesh.triangles[t];
-        let now_p = mesh.triangle_positions(t);
-        let now_t = corners.map(|w| mesh.wedge_texcoord(w));
-        let (Some(orig_p), Some(orig_t)) = (
-            (o < input.triangles.len()).then(|| input.triangle_positions(o)),
-            (o < input.triangles.len())
-                .then(|| input.triangles[o].map(|w| input.wedge_texcoord(w)))
-                .and_then(|a| Some([a[0]?, a[1]?, a[2]?])),
-        ) else {
+        let Some(flag) = detect.flag(mesh, t, origins.in_input(mesh, t)) else {
             continue;
         };
-        let projected: Option<Vec<DVec2>> = now_p
-            .iter()
-            .map(|&p| {
-                project(orig_p, p).map(|(su, sv)| {
-                    orig_t[0] + su * (orig_t[1] - orig_t[0]) + sv * (orig_t[2] - orig_t[0])
-                })
-            })
-            .collect();
-        // Texture scale of the input triangle: texture length per unit of normalised length.
-        let geo_area = (orig_p[1] - orig_p[0])
-            .cross(orig_p[2] - orig_p[0])
-            .length()
-            / half
-            / half;
-        let uv_area = {
-            let (a, b) = (orig_t[1] - orig_t[0], orig_t[2] - orig_t[0]);
-            (a.x * b.y - a.y * b.x).abs()
-        };
-        let scale = if geo_area > 0.0 {
-            (uv_area / geo_area).sqrt()
-        } else {
-            0.0
-        };
-        let flagged = (0..3).any(|i| {
-            let Some(tn) = now_t[i] else { return true };
-            let moved = (now_p[i] - orig_p[i]).length() / half;
-            match params.detection {
-                Detection::All => true,
-                Detection::Thesis => factor * moved < (tn - orig_t[i]).length(),
-                Detection::Jump => projected.as_ref().is_some_and(|pr| {
-                    (tn - pr[i]).length() > factor * scale * moved + params.tolerance
-                }),
-            }
-        });
-        if !flagged {
-            continue;
-        }
         report.flagged += 1;
-        let Some(projected) = projected else {
+        let Some(projected) = flag else {
             report.skipped += 1;
             continue;
         };
         for (k, &uv) in projected.iter().enumerate() {
-            let w = corners[k];
+            let w = mesh.triangles[t][k];
             if matches!(decisions[w as usize], Decision::Undecided) {
-                decisions[w as usize] = shared_fix(w).map_or(Decision::Split, Decision::Shared);
+                decisions[w as usize] = shared.uv(w).map_or(Decision::Split, Decision::Shared);
             }
             match decisions[w as usize] {
                 Decision::Shared(_) => report.corners_shared += 1,
@@ -267,7 +161,24 @@ pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFi
         }
         report.repaired += 1;
     }
-    // Applied once every decision is taken, each on the decimated mesh as it was.
+    drop(shared);
+    apply(mesh, decisions, splits);
+    report
+}
+
+/// What becomes of one wedge of the result.
+#[derive(Clone, Copy)]
+enum Decision {
+    Undecided,
+    /// Corrected in place, for all its triangles.
+    Shared(DVec2),
+    /// Each repaired corner gets a wedge of its own.
+    Split,
+}
+
+/// Applies the decisions and the split corners' texture coordinates, once every decision
+/// is taken, each on the decimated mesh as it was.
+fn apply(mesh: &mut Mesh, decisions: Vec<Decision>, splits: Vec<(usize, usize, DVec2)>) {
     for (w, decision) in decisions.into_iter().enumerate() {
         if let Decision::Shared(uv) = decision {
             mesh.texcoords.push(uv);
@@ -285,7 +196,167 @@ pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFi
         mesh.triangles[t][k] = (mesh.wedges.len() - 1) as Index;
     }
     mesh.compact();
-    report
+}
+
+/// Where the result's triangle origins are among the input's triangles: the same index
+/// when the input is the loaded mesh, else looked up through the input's own origins.
+struct Origins {
+    by_origin: Option<Vec<u32>>,
+}
+
+impl Origins {
+    fn new(input: &Mesh) -> Self {
+        let by_origin = (!input.triangle_origins.is_empty()).then(|| {
+            let size = input
+                .triangle_origins
+                .iter()
+                .max()
+                .map_or(0, |&m| m as usize + 1);
+            let mut map = vec![u32::MAX; size];
+            for (t, &o) in input.triangle_origins.iter().enumerate() {
+                map[o as usize] = t as u32;
+            }
+            map
+        });
+        Origins { by_origin }
+    }
+
+    /// The input triangle that `mesh`'s triangle `t` descends from (`usize::MAX`: none).
+    fn in_input(&self, mesh: &Mesh, t: usize) -> usize {
+        let o = mesh.triangle_origin(t) as usize;
+        match &self.by_origin {
+            Some(map) => map.get(o).map_or(usize::MAX, |&r| r as usize),
+            None => o,
+        }
+    }
+}
+
+/// For in-place repairs: the input's charts, a closest-point index over it, and the
+/// triangles around each wedge of the result.
+struct SharedFix<'a> {
+    mesh: &'a Mesh,
+    input: &'a Mesh,
+    origins: &'a Origins,
+    charts: Vec<u32>,
+    bvh: Option<TriangleBvh<'a>>,
+    around: WedgeTriangles,
+}
+
+impl<'a> SharedFix<'a> {
+    fn new(mesh: &'a Mesh, input: &'a Mesh, origins: &'a Origins) -> Self {
+        let finite = input.positions.iter().all(|p| p.is_finite());
+        // The charts are sequential; they are made beside the tree, whose build is parallel.
+        let (charts, bvh) = rayon::join(
+            || charts(input),
+            || finite.then(|| TriangleBvh::new(input, (0..input.triangles.len() as u32).collect())),
+        );
+        SharedFix {
+            mesh,
+            input,
+            origins,
+            charts,
+            bvh,
+            around: WedgeTriangles::of(mesh),
+        }
+    }
+
+    /// Wedge `w`'s texture coordinates corrected in place: those of the closest input point,
+    /// when all its triangles descend from one input chart and that point lies in it.
+    fn uv(&self, w: Index) -> Option<DVec2> {
+        let bvh = self.bvh.as_ref()?;
+        let mut origins = self
+            .around
+            .of_wedge(w)
+            .iter()
+            .map(|&t| self.origins.in_input(self.mesh, t as usize));
+        let first = origins.next()?;
+        let chart = *self.charts.get(first)?;
+        if !origins.all(|o| self.charts.get(o) == Some(&chart)) {
+            return None;
+        }
+        let p = self.mesh.positions[self.mesh.wedges[w as usize].vertex as usize];
+        if !p.is_finite() {
+            return None;
+        }
+        let start = bvh.hit_on(p, first as u32);
+        let hit = bvh.closest(p, Some(start))?;
+        (self.charts[hit.triangle as usize] == chart)
+            .then(|| uv_at(self.input, &hit))
+            .flatten()
+    }
+}
+
+/// The detection rule with its settings resolved.
+struct Detect<'a> {
+    input: &'a Mesh,
+    params: &'a SeamFixParams,
+    factor: f64,
+    /// Half the input's largest box side: positions are normalised into [−1, 1]³
+    /// (footnote 3 of §3.3).
+    half: f64,
+}
+
+impl<'a> Detect<'a> {
+    fn new(input: &'a Mesh, params: &'a SeamFixParams) -> Self {
+        let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
+        Detect {
+            input,
+            params,
+            factor: params.factor(),
+            half: ((hi - lo).max_element() * 0.5).max(f64::MIN_POSITIVE),
+        }
+    }
+
+    /// Whether triangle `t` of `mesh`, descending from input triangle `o`, is flagged:
+    /// `None` when it is not (or `o` is unknown or has no texture coordinates), else its
+    /// corners projected into `o`'s texture (`None` inside when `o` is degenerate).
+    fn flag(&self, mesh: &Mesh, t: usize, o: usize) -> Option<Option<Vec<DVec2>>> {
+        let input = self.input;
+        if o >= input.triangles.len() {
+            return None;
+        }
+        let orig_p = input.triangle_positions(o);
+        let a = input.triangles[o].map(|w| input.wedge_texcoord(w));
+        let orig_t = [a[0]?, a[1]?, a[2]?];
+        let now_p = mesh.triangle_positions(t);
+        let now_t = mesh.triangles[t].map(|w| mesh.wedge_texcoord(w));
+        let projected: Option<Vec<DVec2>> = now_p
+            .iter()
+            .map(|&p| {
+                project(orig_p, p).map(|(su, sv)| {
+                    orig_t[0] + su * (orig_t[1] - orig_t[0]) + sv * (orig_t[2] - orig_t[0])
+                })
+            })
+            .collect();
+        let scale = self.texture_scale(orig_p, orig_t);
+        let (factor, half, params) = (self.factor, self.half, self.params);
+        let flagged = (0..3).any(|i| {
+            let Some(tn) = now_t[i] else { return true };
+            let moved = (now_p[i] - orig_p[i]).length() / half;
+            match params.detection {
+                Detection::All => true,
+                Detection::Thesis => factor * moved < (tn - orig_t[i]).length(),
+                Detection::Jump => projected.as_ref().is_some_and(|pr| {
+                    (tn - pr[i]).length() > factor * scale * moved + params.tolerance
+                }),
+            }
+        });
+        flagged.then_some(projected)
+    }
+
+    /// Texture scale of an input triangle: texture length per unit of normalised length.
+    fn texture_scale(&self, p: [DVec3; 3], uv: [DVec2; 3]) -> f64 {
+        let geo_area = (p[1] - p[0]).cross(p[2] - p[0]).length() / self.half / self.half;
+        let uv_area = {
+            let (a, b) = (uv[1] - uv[0], uv[2] - uv[0]);
+            (a.x * b.y - a.y * b.x).abs()
+        };
+        if geo_area > 0.0 {
+            (uv_area / geo_area).sqrt()
+        } else {
+            0.0
+        }
+    }
 }
 
 #[cfg(test)]

@@ -17,15 +17,9 @@ fn pair(a: Index, b: Index) -> (Index, Index) {
 /// inherited from the parent triangle.
 pub fn subdivide(mesh: &Mesh) -> Mesh {
     let mut out = Mesh {
-        positions: mesh.positions.clone(),
-        texcoords: mesh.texcoords.clone(),
-        normals: mesh.normals.clone(),
-        colors: mesh.colors.clone(),
-        wedges: mesh.wedges.clone(),
         triangles: Vec::with_capacity(mesh.triangles.len() * 4),
-        triangle_materials: Vec::new(),
-        materials: mesh.materials.clone(),
         triangle_origins: Vec::with_capacity(mesh.triangles.len() * 4),
+        ..mesh.without_triangles()
     };
     let mut mid_vertex: HashMap<(Index, Index), Index> = HashMap::default();
     let mut mid_texcoord: HashMap<(Index, Index), Index> = HashMap::default();

@@ -160,33 +160,28 @@ fn fair(mesh: &mut Mesh, plan: &ops::fair::Plan, cx: &mut StepContext) -> Result
     Ok(figures(report))
 }
 
-impl RecipeStep for ops::fair::RelaxParams {
-    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
-        fair(mesh, &self.plan(), cx)
-    }
+/// The contract of a fairing step: its plan through [`fair`], vertices moved, the
+/// connectivity handed on.
+macro_rules! fairing_step {
+    ($params:ty) => {
+        impl RecipeStep for $params {
+            fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
+                fair(mesh, &self.plan(), cx)
+            }
 
-    fn moves_vertices(&self) -> bool {
-        true
-    }
+            fn moves_vertices(&self) -> bool {
+                true
+            }
 
-    fn uses_fairing_connectivity(&self) -> bool {
-        true
-    }
+            fn uses_fairing_connectivity(&self) -> bool {
+                true
+            }
+        }
+    };
 }
 
-impl RecipeStep for ops::fair::FairParams {
-    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
-        fair(mesh, &self.plan(), cx)
-    }
-
-    fn moves_vertices(&self) -> bool {
-        true
-    }
-
-    fn uses_fairing_connectivity(&self) -> bool {
-        true
-    }
-}
+fairing_step!(ops::fair::RelaxParams);
+fairing_step!(ops::fair::FairParams);
 
 impl RecipeStep for ops::smooth::SmoothParams {
     fn run(&self, mesh: &mut Mesh, _: &mut StepContext) -> Result<Value, String> {

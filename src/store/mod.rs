@@ -626,33 +626,8 @@ impl Store {
                     ],
                 )
                 .map_err(sq)?;
-                tx.execute("DELETE FROM job_output WHERE job_id=?1", [job.id])
-                    .map_err(sq)?;
-                for f in outputs {
-                    tx.execute(
-                        "INSERT OR REPLACE INTO job_output(job_id, path, bytes, sha256) VALUES (?1, ?2, ?3, ?4)",
-                        params![job.id, f.path, f.bytes as i64, f.sha256],
-                    )
-                    .map_err(sq)?;
-                }
-                for (i, s) in steps.iter().enumerate() {
-                    tx.execute(
-                        "INSERT INTO step_timing(attempt_id, idx, kind, wall_ms, vertices_before, vertices_after,
-                            faces_before, faces_after, figures_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
-                        params![
-                            job.attempt_id,
-                            i as i64 + 1,
-                            s.kind,
-                            s.wall_ms,
-                            s.vertices_before,
-                            s.vertices_after,
-                            s.faces_before,
-                            s.faces_after,
-                            s.figures_json
-                        ],
-                    )
-                    .map_err(sq)?;
-                }
+                insert_outputs(&tx, job.id, outputs).map_err(sq)?;
+                insert_step_timings(&tx, job.attempt_id, steps).map_err(sq)?;
                 close_attempt(&tx, job.attempt_id, now, "ok", None, None, wall_ms).map_err(sq)?;
                 FinalState::Done
             }
@@ -661,51 +636,12 @@ impl Store {
                 message,
                 transient,
             } => {
-                let (state, retryable, outcome, fs) = if !transient {
-                    ("failed", 0, "failed", FinalState::Failed)
-                } else if job.attempt >= job.max_attempts {
-                    ("quarantined", 0, "quarantined", FinalState::Quarantined)
-                } else {
-                    ("failed", 1, "retry", FinalState::RetryLater)
-                };
-                let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
-                let message = cut(message, MAX_ERROR_BYTES);
-                tx.execute(
-                    "UPDATE job SET state=?2, retryable=?3, run_after=?4, finished_at=?5, updated_at=?5,
-                        lease_owner=NULL, error_kind=?6, error=?7 WHERE id=?1",
-                    params![job.id, state, retryable, run_after, now, kind, message],
-                )
-                .map_err(sq)?;
-                close_attempt(
-                    &tx,
-                    job.attempt_id,
-                    now,
-                    outcome,
-                    Some(*kind),
-                    Some(&message),
-                    wall_ms,
-                )
-                .map_err(sq)?;
-                fs
+                let end = AttemptEnd { job, now, wall_ms };
+                record_failure(&tx, &end, *kind, message, *transient, retry).map_err(sq)?
             }
             Finish::Interrupted { reason } => {
-                tx.execute(
-                    "UPDATE job SET state='queued', attempts=max(attempts-1, 0), run_after=?2, updated_at=?2,
-                        lease_owner=NULL WHERE id=?1",
-                    params![job.id, now],
-                )
-                .map_err(sq)?;
-                close_attempt(
-                    &tx,
-                    job.attempt_id,
-                    now,
-                    "interrupted",
-                    Some(FailureKind::Interrupted),
-                    Some(reason),
-                    wall_ms,
-                )
-                .map_err(sq)?;
-                FinalState::Requeued
+                let end = AttemptEnd { job, now, wall_ms };
+                record_interruption(&tx, &end, reason).map_err(sq)?
             }
         };
         tx.commit().map_err(sq)?;
@@ -897,6 +833,115 @@ fn load_inputs(conn: &Connection, id: i64) -> rusqlite::Result<Vec<InputMember>>
         })
     })?;
     rows.collect()
+}
+
+/// The attempt that ends: its job, when and after how long.
+struct AttemptEnd<'j> {
+    job: &'j ClaimedJob,
+    now: i64,
+    wall_ms: f64,
+}
+
+/// The job's published files, replacing any recorded before.
+fn insert_outputs(
+    tx: &rusqlite::Transaction<'_>,
+    job_id: i64,
+    outputs: &[OutputFile],
+) -> rusqlite::Result<()> {
+    tx.execute("DELETE FROM job_output WHERE job_id=?1", [job_id])?;
+    for f in outputs {
+        tx.execute(
+            "INSERT OR REPLACE INTO job_output(job_id, path, bytes, sha256) VALUES (?1, ?2, ?3, ?4)",
+            params![job_id, f.path, f.bytes as i64, f.sha256],
+        )?;
+    }
+    Ok(())
+}
+
+/// The attempt's step timings, numbered from 1.
+fn insert_step_timings(
+    tx: &rusqlite::Transaction<'_>,
+    attempt_id: i64,
+    steps: &[StepRow],
+) -> rusqlite::Result<()> {
+    for (i, s) in steps.iter().enumerate() {
+        tx.execute(
+            "INSERT INTO step_timing(attempt_id, idx, kind, wall_ms, vertices_before, vertices_after,
+                faces_before, faces_after, figures_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)",
+            params![
+                attempt_id,
+                i as i64 + 1,
+                s.kind,
+                s.wall_ms,
+                s.vertices_before,
+                s.vertices_after,
+                s.faces_before,
+                s.faces_after,
+                s.figures_json
+            ],
+        )?;
+    }
+    Ok(())
+}
+
+/// A failed attempt: failed for good, quarantined (transient, no attempts left) or retried
+/// after the back-off.
+fn record_failure(
+    tx: &rusqlite::Transaction<'_>,
+    end: &AttemptEnd<'_>,
+    kind: FailureKind,
+    message: &str,
+    transient: bool,
+    retry: RetryPolicy,
+) -> rusqlite::Result<FinalState> {
+    let (job, now) = (end.job, end.now);
+    let (state, retryable, outcome, fs) = if !transient {
+        ("failed", 0, "failed", FinalState::Failed)
+    } else if job.attempt >= job.max_attempts {
+        ("quarantined", 0, "quarantined", FinalState::Quarantined)
+    } else {
+        ("failed", 1, "retry", FinalState::RetryLater)
+    };
+    let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
+    let message = cut(message, MAX_ERROR_BYTES);
+    tx.execute(
+        "UPDATE job SET state=?2, retryable=?3, run_after=?4, finished_at=?5, updated_at=?5,
+            lease_owner=NULL, error_kind=?6, error=?7 WHERE id=?1",
+        params![job.id, state, retryable, run_after, now, kind, message],
+    )?;
+    close_attempt(
+        tx,
+        job.attempt_id,
+        now,
+        outcome,
+        Some(kind),
+        Some(&message),
+        end.wall_ms,
+    )?;
+    Ok(fs)
+}
+
+/// An interrupted attempt: the job goes back to the queue, the attempt not counted.
+fn record_interruption(
+    tx: &rusqlite::Transaction<'_>,
+    end: &AttemptEnd<'_>,
+    reason: &str,
+) -> rusqlite::Result<FinalState> {
+    tx.execute(
+        "UPDATE job SET state='queued', attempts=max(attempts-1, 0), run_after=?2, updated_at=?2,
+            lease_owner=NULL WHERE id=?1",
+        params![end.job.id, end.now],
+    )?;
+    close_attempt(
+        tx,
+        end.job.attempt_id,
+        end.now,
+        "interrupted",
+        Some(FailureKind::Interrupted),
+        Some(reason),
+        end.wall_ms,
+    )?;
+    Ok(FinalState::Requeued)
 }
 
 fn close_attempt(

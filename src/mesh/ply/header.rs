@@ -164,9 +164,6 @@ impl Header {
 
 /// Parses the header at the start of `bytes`.
 pub fn parse(path: &Path, bytes: &[u8]) -> Result<Header> {
-    let bad =
-        |line: u64, message: String| MeshError::malformed(path, Location::Line(line), message);
-
     if !(bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n")) {
         let shown = String::from_utf8_lossy(&bytes[..bytes.len().min(16)]).into_owned();
         return Err(MeshError::malformed(
@@ -175,176 +172,186 @@ pub fn parse(path: &Path, bytes: &[u8]) -> Result<Header> {
             format!("not a PLY file: it must start with the line \"ply\", found {shown:?}"),
         ));
     }
-
+    let mut header = Header {
+        format: Format::Ascii,
+        elements: Vec::new(),
+        comments: Vec::new(),
+        obj_info: Vec::new(),
+        body_start: 0,
+        lines: 0,
+    };
     let mut format: Option<Format> = None;
-    let mut elements: Vec<Element> = Vec::new();
-    let mut comments = Vec::new();
-    let mut obj_info = Vec::new();
-    let mut pos = 0usize;
-    let mut line_no = 0u64;
-
     loop {
-        if pos >= bytes.len() {
+        if header.body_start >= bytes.len() {
             return Err(MeshError::malformed(
                 path,
                 Location::Header,
                 "the header never ends: no end_header line",
             ));
         }
-        let end = bytes[pos..]
-            .iter()
-            .position(|&b| b == b'\n')
-            .map_or(bytes.len(), |i| pos + i);
-        let raw = &bytes[pos..end];
-        pos = (end + 1).min(bytes.len());
-        line_no += 1;
-        let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
+        let raw = next_line(bytes, &mut header.body_start);
+        header.lines += 1;
+        let line_no = header.lines;
+        let bad = |message: String| MeshError::malformed(path, Location::Line(line_no), message);
         let Ok(line) = std::str::from_utf8(raw) else {
-            return Err(bad(line_no, "header line is not text".into()));
+            return Err(bad("header line is not text".into()));
         };
-        if line_no == 1 {
+        if header.lines == 1 {
             continue; // the magic, checked above
         }
-        let mut words = line.split_ascii_whitespace();
-        let Some(keyword) = words.next() else {
-            continue; // tolerate blank lines
-        };
-        let rest = || {
-            line.trim_start()
-                .strip_prefix(keyword)
-                .unwrap_or("")
-                .trim()
-                .to_string()
-        };
-        match keyword {
-            "comment" => comments.push(rest()),
-            "obj_info" => obj_info.push(rest()),
-            "format" => {
-                if format.is_some() {
-                    return Err(bad(line_no, "a second format line".into()));
-                }
-                let f = match words.next() {
-                    Some("ascii") => Format::Ascii,
-                    Some("binary_little_endian") => Format::BinaryLittleEndian,
-                    Some("binary_big_endian") => Format::BinaryBigEndian,
-                    other => {
-                        return Err(bad(
-                            line_no,
-                            format!(
-                                "unknown format {:?} (expected ascii, binary_little_endian or binary_big_endian)",
-                                other.unwrap_or("")
-                            ),
-                        ));
-                    }
-                };
-                match words.next() {
-                    Some("1.0") | Some("1") => {}
-                    other => {
-                        return Err(bad(
-                            line_no,
-                            format!(
-                                "unsupported PLY version {:?} (expected 1.0)",
-                                other.unwrap_or("")
-                            ),
-                        ));
-                    }
-                }
-                format = Some(f);
-            }
-            "element" => {
-                let (Some(name), Some(count), None) = (words.next(), words.next(), words.next())
-                else {
-                    return Err(bad(
-                        line_no,
-                        format!("bad element line {line:?} (expected: element NAME COUNT)"),
-                    ));
-                };
-                let Ok(count) = count.parse::<u64>() else {
-                    return Err(bad(line_no, format!("bad element count {count:?}")));
-                };
-                if elements.iter().any(|e| e.name == name) {
-                    return Err(bad(line_no, format!("element {name:?} declared twice")));
-                }
-                elements.push(Element {
-                    name: name.to_string(),
-                    count,
-                    properties: Vec::new(),
-                });
-            }
-            "property" => {
-                let Some(element) = elements.last_mut() else {
-                    return Err(bad(line_no, "property before any element".into()));
-                };
-                let words: Vec<&str> = words.collect();
-                let scalar = |w: &str| {
-                    Scalar::parse(w)
-                        .ok_or_else(|| bad(line_no, format!("unknown property type {w:?}")))
-                };
-                let (kind, name) = match words.as_slice() {
-                    ["list", count, item, name] => {
-                        let count = scalar(count)?;
-                        if !count.is_integer() {
-                            return Err(bad(
-                                line_no,
-                                format!(
-                                    "list count type must be an integer type, not {}",
-                                    count.name()
-                                ),
-                            ));
-                        }
-                        (
-                            PropertyKind::List {
-                                count,
-                                item: scalar(item)?,
-                            },
-                            *name,
-                        )
-                    }
-                    [ty, name] if *ty != "list" => (PropertyKind::Scalar(scalar(ty)?), *name),
-                    _ => {
-                        return Err(bad(
-                            line_no,
-                            format!(
-                                "bad property line {line:?} (expected: property TYPE NAME or property list COUNT_TYPE ITEM_TYPE NAME)"
-                            ),
-                        ));
-                    }
-                };
-                if element.properties.iter().any(|p| p.name == name) {
-                    return Err(bad(
-                        line_no,
-                        format!(
-                            "property {name:?} declared twice in element {:?}",
-                            element.name
-                        ),
-                    ));
-                }
-                element.properties.push(Property {
-                    name: name.to_string(),
-                    kind,
-                });
-            }
-            "end_header" => break,
-            other => {
-                return Err(bad(line_no, format!("unknown header keyword {other:?}")));
-            }
+        match header_line(line, &mut header, &mut format).map_err(bad)? {
+            Flow::Next => {}
+            Flow::End => break,
         }
     }
+    header.format =
+        format.ok_or_else(|| MeshError::malformed(path, Location::Header, "no format line"))?;
+    Ok(header)
+}
 
-    let Some(format) = format else {
-        return Err(MeshError::malformed(
-            path,
-            Location::Header,
-            "no format line",
+/// Whether the header goes on after a line.
+enum Flow {
+    Next,
+    End,
+}
+
+/// The line starting at `*pos`, without its `\n` or `\r\n`; `*pos` moves past it.
+fn next_line<'b>(bytes: &'b [u8], pos: &mut usize) -> &'b [u8] {
+    let end = bytes[*pos..]
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(bytes.len(), |i| *pos + i);
+    let raw = &bytes[*pos..end];
+    *pos = (end + 1).min(bytes.len());
+    raw.strip_suffix(b"\r").unwrap_or(raw)
+}
+
+/// One header line after the magic, added to `header` (the format to `format`, so that a
+/// second one is seen); blank lines are tolerated.
+fn header_line(
+    line: &str,
+    header: &mut Header,
+    format: &mut Option<Format>,
+) -> std::result::Result<Flow, String> {
+    let mut words = line.split_ascii_whitespace();
+    let Some(keyword) = words.next() else {
+        return Ok(Flow::Next);
+    };
+    let rest = || {
+        line.trim_start()
+            .strip_prefix(keyword)
+            .unwrap_or("")
+            .trim()
+            .to_string()
+    };
+    match keyword {
+        "comment" => header.comments.push(rest()),
+        "obj_info" => header.obj_info.push(rest()),
+        "format" => {
+            if format.is_some() {
+                return Err("a second format line".into());
+            }
+            *format = Some(format_line(words)?);
+        }
+        "element" => {
+            let element = element_line(line, words)?;
+            if header.elements.iter().any(|e| e.name == element.name) {
+                return Err(format!("element {:?} declared twice", element.name));
+            }
+            header.elements.push(element);
+        }
+        "property" => {
+            let Some(element) = header.elements.last_mut() else {
+                return Err("property before any element".into());
+            };
+            let property = property_line(line, words)?;
+            if element.properties.iter().any(|p| p.name == property.name) {
+                return Err(format!(
+                    "property {:?} declared twice in element {:?}",
+                    property.name, element.name
+                ));
+            }
+            element.properties.push(property);
+        }
+        "end_header" => return Ok(Flow::End),
+        other => return Err(format!("unknown header keyword {other:?}")),
+    }
+    Ok(Flow::Next)
+}
+
+/// `format FORMAT 1.0`, after the keyword.
+fn format_line<'l>(
+    mut words: impl Iterator<Item = &'l str>,
+) -> std::result::Result<Format, String> {
+    let f = match words.next() {
+        Some("ascii") => Format::Ascii,
+        Some("binary_little_endian") => Format::BinaryLittleEndian,
+        Some("binary_big_endian") => Format::BinaryBigEndian,
+        other => {
+            return Err(format!(
+                "unknown format {:?} (expected ascii, binary_little_endian or binary_big_endian)",
+                other.unwrap_or("")
+            ));
+        }
+    };
+    match words.next() {
+        Some("1.0") | Some("1") => Ok(f),
+        other => Err(format!(
+            "unsupported PLY version {:?} (expected 1.0)",
+            other.unwrap_or("")
+        )),
+    }
+}
+
+/// `element NAME COUNT`, after the keyword.
+fn element_line<'l>(
+    line: &str,
+    mut words: impl Iterator<Item = &'l str>,
+) -> std::result::Result<Element, String> {
+    let (Some(name), Some(count), None) = (words.next(), words.next(), words.next()) else {
+        return Err(format!(
+            "bad element line {line:?} (expected: element NAME COUNT)"
         ));
     };
-    Ok(Header {
-        format,
-        elements,
-        comments,
-        obj_info,
-        body_start: pos,
-        lines: line_no,
+    let Ok(count) = count.parse::<u64>() else {
+        return Err(format!("bad element count {count:?}"));
+    };
+    Ok(Element {
+        name: name.to_string(),
+        count,
+        properties: Vec::new(),
+    })
+}
+
+/// `property TYPE NAME` or `property list COUNT_TYPE ITEM_TYPE NAME`, after the keyword.
+fn property_line<'l>(
+    line: &str,
+    words: impl Iterator<Item = &'l str>,
+) -> std::result::Result<Property, String> {
+    let words: Vec<&str> = words.collect();
+    let scalar = |w: &str| Scalar::parse(w).ok_or_else(|| format!("unknown property type {w:?}"));
+    let (kind, name) = match words.as_slice() {
+        ["list", count, item, name] => {
+            let count = scalar(count)?;
+            if !count.is_integer() {
+                return Err(format!(
+                    "list count type must be an integer type, not {}",
+                    count.name()
+                ));
+            }
+            let item = scalar(item)?;
+            (PropertyKind::List { count, item }, *name)
+        }
+        [ty, name] if *ty != "list" => (PropertyKind::Scalar(scalar(ty)?), *name),
+        _ => {
+            return Err(format!(
+                "bad property line {line:?} (expected: property TYPE NAME or property list COUNT_TYPE ITEM_TYPE NAME)"
+            ));
+        }
+    };
+    Ok(Property {
+        name: name.to_string(),
+        kind,
     })
 }
 

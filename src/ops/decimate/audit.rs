@@ -140,14 +140,10 @@ fn uv_distance(p: DVec2, uv: [DVec2; 3]) -> f64 {
     }
     (0..3)
         .map(|k| {
-            let (a, b) = (uv[k], uv[(k + 1) % 3]);
-            let ab = b - a;
-            let t = if ab.length_squared() > 0.0 {
-                ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (a + ab * t).distance(p)
+            // In the plane z = 0 (the third terms add exact zeros, so the figure is that of
+            // a 2-D computation).
+            let (a, b) = (uv[k].extend(0.0), uv[(k + 1) % 3].extend(0.0));
+            segment_distance(p.extend(0.0), a, b)
         })
         .fold(f64::INFINITY, f64::min)
 }

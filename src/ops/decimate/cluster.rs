@@ -361,8 +361,8 @@ impl<'a, const M: usize> Cluster<'a, M> {
         let (mut p, _) = red.minimise(mean, self.params.max_condition, regularise);
         // Guard (not in the thesis, §5.5 algorithm v): the minimiser of a cell whose
         // quadric is nearly singular along some direction can lie far outside the cell
-        // although the conditioning test passed (measured: max distance 20.8 % of the
-        // diagonal on the ICT face, 20.2 % on esp32cam). A representative farther than a
+        // although the conditioning test passed (it happens on real scans: docs/decimation.md).
+        // A representative farther than a
         // quarter of the cluster's extent outside the box of its vertices falls back to
         // their mean, as out-of-core clustering keeps its representative in the cell.
         let margin = 0.25 * (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
@@ -532,15 +532,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
     fn into_mesh(self, collapsed: &[bool], lo: DVec3, extent: f64) -> Mesh {
         let mesh = self.mesh;
         let keep = self.params.method == Method::ClusterKeep;
-        let mut out = Mesh {
-            positions: mesh.positions.clone(),
-            texcoords: mesh.texcoords.clone(),
-            normals: mesh.normals.clone(),
-            colors: mesh.colors.clone(),
-            wedges: mesh.wedges.clone(),
-            materials: mesh.materials.clone(),
-            ..Default::default()
-        };
+        let mut out = mesh.without_triangles();
         // New vertex (and wedge) per collapsed cell of `cluster`.
         let nn = self.nodes.len();
         let mut cell_vertex = vec![NIL; nn];

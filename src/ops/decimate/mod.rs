@@ -142,9 +142,9 @@ pub struct DecimateParams {
     pub seam_weight: Option<f64>,
     /// λ_geom, λ_tex, λ_normal of §3.7. Table 5.1 recommends 1, 1e-17, 1e-17; our default
     /// λ_tex is 0.05 (w = 0.0025 on texture coordinates in [0,1] against a unit-box
-    /// geometry): measured on facefuns → 26k it lowers the colour deviation from 0.57 to 0.52
-    /// levels (mean) for a distance still below MeshLab's (0.0043 % vs 0.0049 %), and it
-    /// leaves the other scans within ±1 %. Set 1e-17 for the thesis' values.
+    /// geometry): it lowers the colour deviation on a textured face for a distance still
+    /// below MeshLab's (figures in docs/decimation.md, "Measurements behind rules in the
+    /// code"). Set 1e-17 for the thesis' values.
     pub geometry_weight: f64,
     pub texture_weight: f64,
     pub normal_weight: f64,

@@ -132,6 +132,41 @@ pub fn oct_decode(e: u32) -> [f64; 3] {
 /// than sorts (see [`Work::new`]'s classification): about valence 20.
 const SCAN_TOUCHING: usize = 64;
 
+/// Reusable buffers of one vertex's classification (one per thread).
+#[derive(Default)]
+struct ClassifyScratch {
+    corners: Vec<u32>,
+    link: Vec<(u32, u32)>,
+    lsc: LinkScratch,
+    /// (vertex, place in `corners`) for each vertex of each corner's triangle.
+    touching: Vec<(u32, u32)>,
+    /// `touching` is sorted by vertex (more than [`SCAN_TOUCHING`] entries).
+    sorted: bool,
+}
+
+/// A constraint plane as (unit normal, point, weight).
+type Plane = ([f64; 3], [f64; 3], f64);
+
+/// One vertex's classification. The planes are boxed so that the common case (no planes:
+/// `keep` and `free` borders, interior vertices) costs one pointer per vertex.
+struct VertexInfo {
+    class: VClass,
+    border: bool,
+    // Boxed on purpose: one pointer where a `Vec` would be three words, for every vertex.
+    #[allow(clippy::box_collection)]
+    planes: Option<Box<Vec<Plane>>>,
+    /// Inner-loop steps, for [`Work::classify_steps`].
+    steps: u64,
+}
+
+/// The seam and border edges around one vertex, and their constraint planes.
+#[derive(Default)]
+struct StarEdges {
+    seam: usize,
+    border: usize,
+    planes: Vec<Plane>,
+}
+
 /// Binary digits of `n` (⌈log₂(n + 1)⌉): the steps of a binary search over `n` items.
 fn bits(n: usize) -> usize {
     (usize::BITS - n.leading_zeros()) as usize
@@ -226,6 +261,18 @@ impl<const M: usize> Default for Scratch<M> {
 }
 
 impl<const M: usize> Scratch<M> {
+    /// Empties the scratch for a merge of `s`.
+    #[inline]
+    fn reset(&mut self, s: &[u32]) {
+        self.ns = s.len();
+        self.s = [NIL; 3];
+        self.s[..s.len()].copy_from_slice(s);
+        self.corners.clear();
+        self.dead.clear();
+        self.lw.clear();
+        self.lw_si.clear();
+        self.groups.clear();
+    }
     #[inline]
     fn local(&self, w: u32) -> usize {
         self.lw.get(w).unwrap_or(usize::MAX)
@@ -308,50 +355,12 @@ impl<'a, const M: usize> Work<'a, M> {
     pub fn new(input: &'a Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
         let has_uv = !input.texcoords.is_empty() && M >= 2;
         let has_normals = !input.normals.is_empty() && (M == 3 || M == 5);
-        let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
-        let center = (lo + hi) * 0.5;
-        let extent = (hi - lo).max_element();
-        let inv_scale = if extent > 0.0 { 1.0 / extent } else { 1.0 };
-        let pos: Vec<[f64; 3]> = input
-            .positions
-            .par_iter()
-            .map(|&p| ((p - center) * inv_scale).to_array())
-            .collect();
+        let (center, inv_scale, pos) = normalised_positions(input);
         let nv = pos.len();
         let tris = input.triangles.clone();
         let wvert: Vec<u32> = input.wedges.iter().map(|w| w.vertex).collect();
-        let wattr = WedgeAttrs::new(
-            input.wedges.iter().map(|wd| {
-                let mut a = [0.0; M];
-                let mut k = 0;
-                if has_uv {
-                    if let Some(t) = wd.texcoord {
-                        let uv = input.texcoords[t as usize];
-                        a[0] = uv.x;
-                        a[1] = uv.y;
-                    }
-                    k = 2;
-                }
-                if has_normals && let Some(n) = wd.normal {
-                    let n = input.normals[n as usize];
-                    a[k] = n.x;
-                    a[k + 1] = n.y;
-                    a[k + 2] = n.z;
-                }
-                a
-            }),
-            has_normals,
-        );
-        // Corner lists, ascending (built by prepending in reverse).
-        let mut vfirst = vec![NIL; nv];
-        let mut cnext = vec![NIL; tris.len() * 3];
-        let mut star = vec![0u32; nv];
-        for c in (0..tris.len() * 3).rev() {
-            let v = wvert[tris[c / 3][c % 3] as usize] as usize;
-            cnext[c] = vfirst[v];
-            vfirst[v] = c as u32;
-            star[v] += 1;
-        }
+        let wattr = wedge_attributes(input, has_uv, has_normals);
+        let (vfirst, cnext, star) = corner_lists(&tris, &wvert, nv);
         let nw = wvert.len();
         let tv: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|w| wvert[w as usize])).collect();
         let mut work = Work {
@@ -372,16 +381,7 @@ impl<'a, const M: usize> Work<'a, M> {
             wattr,
             wq: WedgeQuadrics::default(),
             vred: Vec::new(),
-            onormal: (0..input.triangles.len())
-                .into_par_iter()
-                .map(|t| {
-                    let n = match origin {
-                        Some(o) => o.triangle_cross(input.triangle_origin(t) as usize),
-                        None => input.triangle_cross(t),
-                    };
-                    oct_encode(n.to_array())
-                })
-                .collect(),
+            onormal: origin_normals(input, origin),
             wchanged: vec![false; nw],
             w,
             has_uv,
@@ -390,19 +390,24 @@ impl<'a, const M: usize> Work<'a, M> {
             classes: ClassCounts::default(),
             classify_steps: 0,
         };
+        work.prepare();
+        work
+    }
+
+    /// The quadrics, then the vertex classes (which add border planes to the quadrics).
+    fn prepare(&mut self) {
         let (t0, c0) = (std::time::Instant::now(), super::cpu_seconds());
-        work.quadrics();
+        self.quadrics();
         let (t1, c1) = (std::time::Instant::now(), super::cpu_seconds());
-        work.classify();
+        self.classify();
         tracing::debug!(
             quadrics_ms = (t1 - t0).as_secs_f64() * 1e3,
             classify_ms = t1.elapsed().as_secs_f64() * 1e3,
             quadrics_cpu_ms = (c1 - c0) * 1e3,
             classify_cpu_ms = (super::cpu_seconds() - c1) * 1e3,
-            classify_steps = work.classify_steps,
+            classify_steps = self.classify_steps,
             "decimate set-up"
         );
-        work
     }
 
     /// Each wedge's quadric is the sum of the face quadrics of its triangles (§5.6
@@ -470,160 +475,11 @@ impl<'a, const M: usize> Work<'a, M> {
     /// Vertex classes (see [`VClass`]) from each vertex's star, in parallel; adds the
     /// border planes of `boundary = "weighted"` to the border wedges.
     fn classify(&mut self) {
-        // The planes are boxed so that the common case (no planes: `keep` and `free`
-        // borders, interior vertices) costs one pointer per vertex.
-        type Planes = Option<Box<Vec<([f64; 3], [f64; 3], f64)>>>;
-        struct Info {
-            class: VClass,
-            border: bool,
-            planes: Planes,
-            steps: u64,
-        }
-        let infos: Vec<Info> = (0..self.pos.len())
+        let infos: Vec<VertexInfo> = (0..self.pos.len())
             .into_par_iter()
-            .map_init(
-                || {
-                    (
-                        Vec::<(u32, u32)>::new(),
-                        Vec::<u32>::new(),
-                        LinkScratch::default(),
-                        Vec::<(u32, u32)>::new(),
-                    )
-                },
-                |(link, corners, lsc, touching), v| {
-                    corners.clear();
-                    let mut c = self.vfirst[v];
-                    while c != NIL {
-                        corners.push(c);
-                        c = self.cnext[c as usize];
-                    }
-                    if corners.is_empty() {
-                        return Info {
-                            class: VClass::Fixed,
-                            border: false,
-                            planes: None,
-                            steps: 1,
-                        };
-                    }
-                    link.clear();
-                    let mut wedges: [u32; 4] = [NIL; 4];
-                    let mut nwedges = 0;
-                    for &c in corners.iter() {
-                        let (t, k) = (c as usize / 3, c as usize % 3);
-                        let tri = self.tris[t];
-                        link.push((
-                            self.wvert[tri[(k + 1) % 3] as usize],
-                            self.wvert[tri[(k + 2) % 3] as usize],
-                        ));
-                        let w = tri[k];
-                        if !wedges[..nwedges.min(4)].contains(&w) {
-                            if nwedges < 4 {
-                                wedges[nwedges] = w;
-                            }
-                            nwedges += 1;
-                        }
-                    }
-                    let shape = link_shape(link, lsc);
-                    let mut seam_edges = 0;
-                    let mut border_edges = 0;
-                    let mut planes = Vec::new();
-                    // Which corners' triangles touch each vertex: (vertex, corner's place in
-                    // `corners`), in corner order. Around a vertex of high valence they are
-                    // sorted, so that the triangles on an edge (v, x) are one run found by a
-                    // binary search (O(k log k) for valence k, not O(k²)); around the usual
-                    // few corners a scan finds them sooner than a sort would.
-                    touching.clear();
-                    for (i, &c) in corners.iter().enumerate() {
-                        let tv = self.tris[c as usize / 3].map(|w| self.wvert[w as usize]);
-                        for (k, &y) in tv.iter().enumerate() {
-                            if !tv[..k].contains(&y) {
-                                touching.push((y, i as u32));
-                            }
-                        }
-                    }
-                    let sorted = touching.len() > SCAN_TOUCHING;
-                    let mut steps = corners.len() as u64;
-                    if sorted {
-                        touching.sort_unstable();
-                        steps += (touching.len() * bits(touching.len())) as u64;
-                    }
-                    // Every neighbour x: the triangles on edge (v, x).
-                    for (i, &ci) in corners.iter().enumerate() {
-                        let (ti, ki) = (ci as usize / 3, ci as usize % 3);
-                        let tri_i = self.tris[ti];
-                        for side in [1, 2] {
-                            let x_w = tri_i[(ki + side) % 3];
-                            let x = self.wvert[x_w as usize];
-                            // The corners whose triangles have x, in order; corner i's is one.
-                            let (lo, hi) = if sorted {
-                                steps += 2 * bits(touching.len()) as u64;
-                                (
-                                    touching.partition_point(|e| e.0 < x),
-                                    touching.partition_point(|e| e.0 <= x),
-                                )
-                            } else {
-                                steps += touching.len() as u64;
-                                (0, touching.len())
-                            };
-                            let mut run = touching[lo..hi].iter().filter(|e| e.0 == x);
-                            // Count each edge once: from the first corner that has it.
-                            if run.next().is_some_and(|e| e.1 < i as u32) {
-                                continue;
-                            }
-                            steps += 2;
-                            let mut others = run.map(|e| &corners[e.1 as usize]);
-                            match (others.next(), others.next()) {
-                                (None, _) => {
-                                    border_edges += 1;
-                                    if self.cfg.boundary == BoundaryMode::Weighted {
-                                        let w = self.cfg.boundary_weight;
-                                        planes.extend(self.edge_plane(v, x, ti, w));
-                                    }
-                                }
-                                (Some(&cj), None) => {
-                                    let (tj, kj) = (cj as usize / 3, cj as usize % 3);
-                                    let tri_j = self.tris[tj];
-                                    let xw_j = *tri_j
-                                        .iter()
-                                        .find(|&&w| self.wvert[w as usize] == x)
-                                        .unwrap_or(&NIL);
-                                    if tri_j[kj] != tri_i[ki]
-                                        || xw_j != x_w
-                                        || self.input.triangle_material(ti)
-                                            != self.input.triangle_material(tj)
-                                    {
-                                        seam_edges += 1;
-                                        if self.cfg.seam_weight > 0.0 {
-                                            // One plane per side, each with half the weight.
-                                            let w = 0.5 * self.cfg.seam_weight;
-                                            for t in [ti, tj] {
-                                                planes.extend(self.edge_plane(v, x, t, w));
-                                            }
-                                        }
-                                    }
-                                }
-                                _ => {} // non-manifold edge: the link test fails below
-                            }
-                        }
-                    }
-                    let class = match shape {
-                        None => VClass::Fixed,
-                        Some(_) if seam_edges > 0 && border_edges > 0 => VClass::Fixed,
-                        Some(LinkShape::Path) if seam_edges == 0 && nwedges == 1 => VClass::Border,
-                        Some(LinkShape::Cycle) if seam_edges == 0 && nwedges == 1 => {
-                            VClass::Interior
-                        }
-                        Some(LinkShape::Cycle) if seam_edges == 2 && nwedges == 2 => VClass::Seam,
-                        _ => VClass::Fixed,
-                    };
-                    Info {
-                        class,
-                        border: border_edges > 0 || shape == Some(LinkShape::Path),
-                        planes: (!planes.is_empty()).then(|| Box::new(planes)),
-                        steps,
-                    }
-                },
-            )
+            .map_init(ClassifyScratch::default, |sc, v| {
+                self.classify_vertex(v, sc)
+            })
             .collect();
         for (v, info) in infos.into_iter().enumerate() {
             self.classify_steps += info.steps;
@@ -645,16 +501,174 @@ impl<'a, const M: usize> Work<'a, M> {
         }
     }
 
+    /// One vertex's class from its link's shape, its wedges and the seam and border edges
+    /// around it, with the constraint planes of those edges.
+    fn classify_vertex(&self, v: usize, sc: &mut ClassifyScratch) -> VertexInfo {
+        sc.corners.clear();
+        let mut c = self.vfirst[v];
+        while c != NIL {
+            sc.corners.push(c);
+            c = self.cnext[c as usize];
+        }
+        if sc.corners.is_empty() {
+            return VertexInfo {
+                class: VClass::Fixed,
+                border: false,
+                planes: None,
+                steps: 1,
+            };
+        }
+        let nwedges = self.link_and_wedges(sc);
+        let shape = link_shape(&sc.link, &mut sc.lsc);
+        let mut steps = sc.corners.len() as u64 + self.index_touching(sc);
+        let edges = self.star_edges(v, sc, &mut steps);
+        let class = match shape {
+            None => VClass::Fixed,
+            Some(_) if edges.seam > 0 && edges.border > 0 => VClass::Fixed,
+            Some(LinkShape::Path) if edges.seam == 0 && nwedges == 1 => VClass::Border,
+            Some(LinkShape::Cycle) if edges.seam == 0 && nwedges == 1 => VClass::Interior,
+            Some(LinkShape::Cycle) if edges.seam == 2 && nwedges == 2 => VClass::Seam,
+            _ => VClass::Fixed,
+        };
+        VertexInfo {
+            class,
+            border: edges.border > 0 || shape == Some(LinkShape::Path),
+            planes: (!edges.planes.is_empty()).then(|| Box::new(edges.planes)),
+            steps,
+        }
+    }
+
+    /// Fills the link (the edge opposite each corner) and counts the vertex's distinct
+    /// wedges (counting on past four, which is enough to tell one and two from more).
+    #[inline]
+    fn link_and_wedges(&self, sc: &mut ClassifyScratch) -> usize {
+        sc.link.clear();
+        let mut wedges: [u32; 4] = [NIL; 4];
+        let mut nwedges = 0;
+        for &c in sc.corners.iter() {
+            let (t, k) = (c as usize / 3, c as usize % 3);
+            let tri = self.tris[t];
+            sc.link.push((
+                self.wvert[tri[(k + 1) % 3] as usize],
+                self.wvert[tri[(k + 2) % 3] as usize],
+            ));
+            let w = tri[k];
+            if !wedges[..nwedges.min(4)].contains(&w) {
+                if nwedges < 4 {
+                    wedges[nwedges] = w;
+                }
+                nwedges += 1;
+            }
+        }
+        nwedges
+    }
+
+    /// Which corners' triangles touch each vertex: (vertex, corner's place in `corners`),
+    /// in corner order. Around a vertex of high valence they are sorted, so that the
+    /// triangles on an edge (v, x) are one run found by a binary search (O(k log k) for
+    /// valence k, not O(k²)); around the usual few corners a scan finds them sooner than a
+    /// sort would. Returns the sort's steps.
+    #[inline]
+    fn index_touching(&self, sc: &mut ClassifyScratch) -> u64 {
+        sc.touching.clear();
+        for (i, &c) in sc.corners.iter().enumerate() {
+            let tv = self.tris[c as usize / 3].map(|w| self.wvert[w as usize]);
+            for (k, &y) in tv.iter().enumerate() {
+                if !tv[..k].contains(&y) {
+                    sc.touching.push((y, i as u32));
+                }
+            }
+        }
+        sc.sorted = sc.touching.len() > SCAN_TOUCHING;
+        if sc.sorted {
+            sc.touching.sort_unstable();
+            (sc.touching.len() * bits(sc.touching.len())) as u64
+        } else {
+            0
+        }
+    }
+
+    /// Every edge (v, x) of v's star, once: border and seam edges counted, with their
+    /// constraint planes where the configuration weights them.
+    #[inline]
+    fn star_edges(&self, v: usize, sc: &ClassifyScratch, steps: &mut u64) -> StarEdges {
+        let mut edges = StarEdges::default();
+        let touching = &sc.touching[..];
+        for (i, &ci) in sc.corners.iter().enumerate() {
+            let (ti, ki) = (ci as usize / 3, ci as usize % 3);
+            for side in [1, 2] {
+                let x_w = self.tris[ti][(ki + side) % 3];
+                let x = self.wvert[x_w as usize];
+                // The corners whose triangles have x, in order; corner i's is one.
+                let (lo, hi) = if sc.sorted {
+                    *steps += 2 * bits(touching.len()) as u64;
+                    (
+                        touching.partition_point(|e| e.0 < x),
+                        touching.partition_point(|e| e.0 <= x),
+                    )
+                } else {
+                    *steps += touching.len() as u64;
+                    (0, touching.len())
+                };
+                let mut run = touching[lo..hi].iter().filter(|e| e.0 == x);
+                // Count each edge once: from the first corner that has it.
+                if run.next().is_some_and(|e| e.1 < i as u32) {
+                    continue;
+                }
+                *steps += 2;
+                let mut others = run.map(|e| sc.corners[e.1 as usize]);
+                match (others.next(), others.next()) {
+                    (None, _) => self.border_edge(v, x, ti, &mut edges),
+                    (Some(cj), None) => self.inner_edge(v, x_w, ci, cj, &mut edges),
+                    _ => {} // non-manifold edge: the link test fails
+                }
+            }
+        }
+        edges
+    }
+
+    /// A border edge (v, x) of triangle `t`.
+    #[inline]
+    fn border_edge(&self, v: usize, x: u32, t: usize, edges: &mut StarEdges) {
+        edges.border += 1;
+        if self.cfg.boundary == BoundaryMode::Weighted {
+            let w = self.cfg.boundary_weight;
+            edges.planes.extend(self.edge_plane(v, x, t, w));
+        }
+    }
+
+    /// An edge (v, x) between the triangles of corners `ci` and `cj` (at v), where `x_w` is
+    /// x's wedge in `ci`'s triangle: a seam edge when the wedges at either end or the
+    /// materials differ.
+    #[inline]
+    fn inner_edge(&self, v: usize, x_w: u32, ci: u32, cj: u32, edges: &mut StarEdges) {
+        let x = self.wvert[x_w as usize];
+        let (ti, ki) = (ci as usize / 3, ci as usize % 3);
+        let (tj, kj) = (cj as usize / 3, cj as usize % 3);
+        let (tri_i, tri_j) = (self.tris[ti], self.tris[tj]);
+        let xw_j = *tri_j
+            .iter()
+            .find(|&&w| self.wvert[w as usize] == x)
+            .unwrap_or(&NIL);
+        if tri_j[kj] != tri_i[ki]
+            || xw_j != x_w
+            || self.input.triangle_material(ti) != self.input.triangle_material(tj)
+        {
+            edges.seam += 1;
+            if self.cfg.seam_weight > 0.0 {
+                // One plane per side, each with half the weight.
+                let w = 0.5 * self.cfg.seam_weight;
+                for t in [ti, tj] {
+                    edges.planes.extend(self.edge_plane(v, x, t, w));
+                }
+            }
+        }
+    }
+
     /// The constraint plane (Garland–Heckbert) through edge (v, x), perpendicular to
     /// triangle `t`, of weight `weight` × |e|² as (unit normal, point, weight); `None` when
     /// the edge or the triangle is degenerate.
-    fn edge_plane(
-        &self,
-        v: usize,
-        x: u32,
-        t: usize,
-        weight: f64,
-    ) -> Option<([f64; 3], [f64; 3], f64)> {
+    fn edge_plane(&self, v: usize, x: u32, t: usize, weight: f64) -> Option<Plane> {
         let pv = self.pos[v];
         let e = sub(self.pos[x as usize], pv);
         let pn = cross(e, self.unit_normal(t));
@@ -839,16 +853,52 @@ impl<'a, const M: usize> Work<'a, M> {
 
     /// Gathers the star of S, groups the wedges and places the merged vertex.
     pub fn evaluate(&self, s: &[u32], sc: &mut Scratch<M>) -> Result<Plan, Refusal> {
-        let ns = s.len();
-        sc.ns = ns;
-        sc.s = [NIL; 3];
-        sc.s[..ns].copy_from_slice(s);
-        sc.corners.clear();
-        sc.dead.clear();
-        sc.lw.clear();
-        sc.lw_si.clear();
-        sc.groups.clear();
+        sc.reset(s);
         self.star_fits(s)?;
+        self.gather_star(s, sc);
+        if sc.dead.is_empty() {
+            return Err(Refusal::Link);
+        }
+        self.unite_dead_wedges(s, sc);
+        let mut red = Reduced::default();
+        for &v in s {
+            red.add(&self.vred[v as usize]);
+        }
+        self.group_wedges(sc, &mut red)?;
+        let along = |i: usize, j: usize, seam: bool| {
+            if seam {
+                self.is_seam_edge(s[i], s[j], &sc.dead)
+            } else {
+                self.is_border_edge(s[i], s[j], &sc.dead)
+            }
+        };
+        let anchors = self.rules(s, Some(&along))?;
+        let dense = if self.cfg.conditioning == Conditioning::ThesisLiteral {
+            Some(dense_system(sc, &red))
+        } else {
+            None
+        };
+        let (p, placement, fallback) = self.place(s, anchors, &red, dense);
+        if !p.iter().all(|c| c.is_finite()) {
+            return Err(Refusal::Degenerate);
+        }
+        let (cost, error) = self.merged_attributes(sc, p, placement, &red);
+        Ok(Plan {
+            p,
+            placement,
+            cost,
+            error,
+            fallback,
+            red,
+        })
+    }
+
+    /// Fills the (reset) scratch with S's star: the corners of the triangles that survive (one
+    /// corner in S), the triangles that die (two or more, each listed once) and the wedges
+    /// at S in the order met, each with the place in S of its vertex.
+    #[inline]
+    fn gather_star(&self, s: &[u32], sc: &mut Scratch<M>) {
+        let ns = s.len();
         for (si, &v) in s.iter().enumerate() {
             let mut c = self.vfirst[v as usize];
             while c != NIL {
@@ -878,10 +928,12 @@ impl<'a, const M: usize> Work<'a, M> {
                 c = self.cnext[c as usize];
             }
         }
-        if sc.dead.is_empty() {
-            return Err(Refusal::Link);
-        }
-        // Wedge merging (§5.6 step 3): the wedges at S of each deleted triangle unite.
+    }
+
+    /// Wedge merging (§5.6 step 3): the wedges at S of each deleted triangle unite
+    /// (union-find over the scratch's wedges, the smaller place as the root).
+    #[inline]
+    fn unite_dead_wedges(&self, s: &[u32], sc: &mut Scratch<M>) {
         sc.lw_parent.clear();
         sc.lw_parent.extend(0..sc.lw.len() as u32);
         for d in 0..sc.dead.len() {
@@ -903,12 +955,15 @@ impl<'a, const M: usize> Work<'a, M> {
                 }
             }
         }
+    }
+
+    /// One [`Group`] for each set of united wedges, with their summed attribute quadrics;
+    /// in `red`, the Schur terms of merged wedges give way to their merged block's.
+    /// Refuses a merge that would unite two wedges of one vertex (a seam would close).
+    #[inline]
+    fn group_wedges(&self, sc: &mut Scratch<M>, red: &mut Reduced) -> Result<(), Refusal> {
         sc.lw_group.clear();
         sc.lw_group.resize(sc.lw.len(), NIL);
-        let mut red = Reduced::default();
-        for &v in s {
-            red.add(&self.vred[v as usize]);
-        }
         for l in 0..sc.lw.len() {
             let r = sc.find(l);
             if sc.lw_group[r] == NIL {
@@ -927,7 +982,6 @@ impl<'a, const M: usize> Work<'a, M> {
             let si = sc.lw_si[l] as usize;
             let group = &mut sc.groups[g as usize];
             if group.at[si] != NIL {
-                // Two wedges of one vertex would merge: a seam would close.
                 return Err(Refusal::Seam);
             }
             group.at[si] = w;
@@ -935,7 +989,6 @@ impl<'a, const M: usize> Work<'a, M> {
             group.size += 1;
             group.q.add(&self.wq.get(w as usize));
         }
-        // Merged wedges: their separate Schur terms give way to the merged block's.
         if sc.groups.len() < sc.lw.len() {
             for l in 0..sc.lw.len() {
                 if sc.groups[sc.lw_group[l] as usize].size > 1 {
@@ -948,39 +1001,20 @@ impl<'a, const M: usize> Work<'a, M> {
                 }
             }
         }
+        Ok(())
+    }
 
-        let along = |i: usize, j: usize, seam: bool| {
-            if seam {
-                self.is_seam_edge(s[i], s[j], &sc.dead)
-            } else {
-                self.is_border_edge(s[i], s[j], &sc.dead)
-            }
-        };
-        let anchors = self.rules(s, Some(&along))?;
-        let dense = if self.cfg.conditioning == Conditioning::ThesisLiteral {
-            sc.dense.clear();
-            for g in &sc.groups {
-                let mut q = Quadric::<M>::default();
-                (q.g, q.delta, q.alpha) = (g.q.g, g.q.delta, g.q.alpha);
-                q.p = red.m;
-                q.beta = red.r;
-                sc.dense.push(q);
-            }
-            // The position block appears once: keep it in the first wedge only.
-            for q in sc.dense.iter_mut().skip(1) {
-                q.p = [0.0; 6];
-                q.beta = [0.0; 3];
-            }
-            Some(&mut sc.dense)
-        } else {
-            None
-        };
-        let (p, placement, fallback) = self.place(s, anchors, &red, dense);
-        if !p.iter().all(|c| c.is_finite()) {
-            return Err(Refusal::Degenerate);
-        }
-
-        // Attributes of each merged wedge.
+    /// Each merged wedge's attributes at `p` (an anchor's wedge keeps its own); returns
+    /// the merge's cost (quadric value, with the anchored wedges' excess) and error (RMS
+    /// distance: the cost over the area, square-rooted).
+    #[inline]
+    fn merged_attributes(
+        &self,
+        sc: &mut Scratch<M>,
+        p: [f64; 3],
+        placement: Placement,
+        red: &Reduced,
+    ) -> (f64, f64) {
         let mut cost = red.eval(p);
         let mut area = 0.0;
         for g in sc.groups.iter_mut() {
@@ -1010,14 +1044,7 @@ impl<'a, const M: usize> Work<'a, M> {
         } else {
             0.0
         };
-        Ok(Plan {
-            p,
-            placement,
-            cost,
-            error,
-            fallback,
-            red,
-        })
+        (cost, error)
     }
 
     /// Is the edge between `a` and `b` (both in S) a seam edge? Its triangles are among the
@@ -1271,4 +1298,99 @@ impl<'a, const M: usize> Work<'a, M> {
         mesh.compact();
         mesh
     }
+}
+
+/// The merged vertex's dense system for `conditioning = "thesis-literal"`: one quadric per
+/// wedge group, the position block kept in the first only (it appears once).
+fn dense_system<'s, const M: usize>(
+    sc: &'s mut Scratch<M>,
+    red: &Reduced,
+) -> &'s mut Vec<Quadric<M>> {
+    sc.dense.clear();
+    for g in &sc.groups {
+        let mut q = Quadric::<M>::default();
+        (q.g, q.delta, q.alpha) = (g.q.g, g.q.delta, g.q.alpha);
+        q.p = red.m;
+        q.beta = red.r;
+        sc.dense.push(q);
+    }
+    for q in sc.dense.iter_mut().skip(1) {
+        q.p = [0.0; 6];
+        q.beta = [0.0; 3];
+    }
+    &mut sc.dense
+}
+
+/// The input's positions moved and scaled into the unit box (largest side 1, centred on
+/// the origin), with the centre and the inverse scale that undo it.
+fn normalised_positions(input: &Mesh) -> (DVec3, f64, Vec<[f64; 3]>) {
+    let (lo, hi) = input.bounding_box().unwrap_or((DVec3::ZERO, DVec3::ONE));
+    let center = (lo + hi) * 0.5;
+    let extent = (hi - lo).max_element();
+    let inv_scale = if extent > 0.0 { 1.0 / extent } else { 1.0 };
+    let pos = input
+        .positions
+        .par_iter()
+        .map(|&p| ((p - center) * inv_scale).to_array())
+        .collect();
+    (center, inv_scale, pos)
+}
+
+/// Each wedge's attribute vector: texture coordinates (when `has_uv`), then the normal
+/// (when `has_normals`); zero where a wedge has none.
+fn wedge_attributes<const M: usize>(
+    input: &Mesh,
+    has_uv: bool,
+    has_normals: bool,
+) -> WedgeAttrs<M> {
+    let attributes = input.wedges.iter().map(|wd| {
+        let mut a = [0.0; M];
+        let mut k = 0;
+        if has_uv {
+            if let Some(t) = wd.texcoord {
+                let uv = input.texcoords[t as usize];
+                a[0] = uv.x;
+                a[1] = uv.y;
+            }
+            k = 2;
+        }
+        if has_normals && let Some(n) = wd.normal {
+            let n = input.normals[n as usize];
+            a[k] = n.x;
+            a[k + 1] = n.y;
+            a[k + 2] = n.z;
+        }
+        a
+    });
+    WedgeAttrs::new(attributes, has_normals)
+}
+
+/// Each vertex's corner list, ascending (built by prepending in reverse): the first
+/// corner of each vertex, the next corner of each corner, and each list's length.
+fn corner_lists(tris: &[[u32; 3]], wvert: &[u32], nv: usize) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    let mut vfirst = vec![NIL; nv];
+    let mut cnext = vec![NIL; tris.len() * 3];
+    let mut star = vec![0u32; nv];
+    for c in (0..tris.len() * 3).rev() {
+        let v = wvert[tris[c / 3][c % 3] as usize] as usize;
+        cnext[c] = vfirst[v];
+        vfirst[v] = c as u32;
+        star[v] += 1;
+    }
+    (vfirst, cnext, star)
+}
+
+/// The normal each triangle is held against by the flip guard, octahedron-encoded: its
+/// own, or with `origin`, its origin triangle's there.
+fn origin_normals(input: &Mesh, origin: Option<&Mesh>) -> Vec<u32> {
+    (0..input.triangles.len())
+        .into_par_iter()
+        .map(|t| {
+            let n = match origin {
+                Some(o) => o.triangle_cross(input.triangle_origin(t) as usize),
+                None => input.triangle_cross(t),
+            };
+            oct_encode(n.to_array())
+        })
+        .collect()
 }

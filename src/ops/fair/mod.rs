@@ -114,11 +114,9 @@ impl Default for FairParams {
             // (§3.8, §4.6.3); full convergence is not wanted (§2.2) and the cap sets how much
             // is faired: the displacement stop S never fires on noisy scans before shape is
             // lost (curvature-magnitude diffusion keeps moving vertices while H is not yet
-            // harmonic). Measured on the real scans with the noise protocol (σ = 0.2 × mean
-            // edge along normals: bunny, Lucy, Igea, facefuns), the distance to the clean
-            // scan is least at 400 (Lucy, bunny) to 1000 (Igea) iterations and grows beyond
-            // (Lucy: 0.69 of the noisy distance at 400, 0.77 at 1000, 1.17 at 4000); 500 is
-            // the compromise. The thesis' 5000 stays reachable.
+            // harmonic). 500 is where the distance to the clean scan is least on the noise
+            // protocol's scans (docs/fairing.md, "Measurements behind rules in the code");
+            // the thesis' 5000 stays reachable.
             max_iterations: 500,
             stop: s.stop,
             stop_in: StopIn::Any,
@@ -127,10 +125,9 @@ impl Default for FairParams {
             c_lambda_u: c.lambda_u,
             c_t_h: c.t_h,
             c_t_u: c.t_u,
-            // The thesis ran boundary curves to the threshold. On james.obj and the ggg_sfm
-            // scans the borders are as smooth after 200 iterations as after 10000 (mean
-            // turning angle 13° vs 12.5° on james), while later iterations only grind
-            // against the guards and change hole areas more.
+            // The thesis ran boundary curves to the threshold. Borders are as smooth after
+            // 200 iterations as after 10000 (docs/fairing.md), while later iterations only
+            // grind against the guards and change hole areas more.
             c_max_iterations: 200,
             c_stop: c.stop,
             epsilon: 1e-4,
