@@ -1,6 +1,7 @@
 //! The `smooth` step: the four vertex-moving denoising filters compared in the smoothing
 //! thesis (spec/smoothing.md): Laplace (§3.2), Laplace-HC (§3.3, Vollmer et al. 1999),
-//! Taubin λ|μ (§3.4, Taubin 1995) and bilateral mesh denoising (§3.5, Fleishman et al. 2003).
+//! Taubin λ|μ (§3.4, Taubin 1995) and bilateral mesh denoising (§3.5, Fleishman et al. 2003);
+//! and, beyond the thesis, normal filtering (`normal-filter`, issue #26; see its module).
 //!
 //! Only positions move (spec §1: "none of the filters changes topology"): wedges, texture
 //! coordinates and seams are untouched, so seams stay closed by construction. Stored
