@@ -1,6 +1,7 @@
 //! The `smooth` step: the four vertex-moving denoising filters compared in the smoothing
 //! thesis (spec/smoothing.md): Laplace (§3.2), Laplace-HC (§3.3, Vollmer et al. 1999),
-//! Taubin λ|μ (§3.4, Taubin 1995) and bilateral mesh denoising (§3.5, Fleishman et al. 2003).
+//! Taubin λ|μ (§3.4, Taubin 1995) and bilateral mesh denoising (§3.5, Fleishman et al. 2003);
+//! and, beyond the thesis, normal filtering (`normal-filter`, issue #26; see its module).
 //!
 //! Only positions move (spec §1: "none of the filters changes topology"): wedges, texture
 //! coordinates and seams are untouched, so seams stay closed by construction. Stored
@@ -20,6 +21,7 @@ mod bilateral;
 mod graph;
 mod hc;
 mod laplace;
+mod normal_filter;
 mod taubin;
 
 use crate::mesh::Mesh;
@@ -27,6 +29,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 pub use graph::SmoothGraph;
+pub use normal_filter::{NormalFilterParams, NormalVariant};
 
 /// How a new position is stored (spec §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -168,6 +171,7 @@ pub enum SmoothMethod {
     Hc(HcParams),
     Taubin(TaubinParams),
     Bilateral(BilateralParams),
+    NormalFilter(NormalFilterParams),
 }
 
 impl SmoothMethod {
@@ -177,6 +181,7 @@ impl SmoothMethod {
             SmoothMethod::Hc(_) => "hc",
             SmoothMethod::Taubin(_) => "taubin",
             SmoothMethod::Bilateral(_) => "bilateral",
+            SmoothMethod::NormalFilter(_) => "normal-filter",
         }
     }
 }
@@ -201,6 +206,7 @@ pub enum MethodName {
     Hc,
     Taubin,
     Bilateral,
+    NormalFilter,
 }
 
 /// The recipe form of [`SmoothParams`]: flat, every parameter optional.
@@ -238,6 +244,16 @@ pub struct SmoothParamsFile {
     pub anchor: Option<LaplaceAnchor>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub count: Option<TaubinCount>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub variant: Option<NormalVariant>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub strength: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_r: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub normal_passes: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vertex_passes: Option<u32>,
 }
 
 /// Upper bound on `iterations`: far beyond any useful smoothing, low enough that a typo
@@ -271,6 +287,11 @@ impl SmoothParamsFile {
         push(self.weights.is_some(), "weights");
         push(self.anchor.is_some(), "anchor");
         push(self.count.is_some(), "count");
+        push(self.variant.is_some(), "variant");
+        push(self.strength.is_some(), "strength");
+        push(self.sigma_r.is_some(), "sigma_r");
+        push(self.normal_passes.is_some(), "normal_passes");
+        push(self.vertex_passes.is_some(), "vertex_passes");
         names
     }
 }
@@ -281,6 +302,7 @@ fn own_parameters(method: MethodName) -> &'static [&'static str] {
         MethodName::Hc => &["lambda", "alpha", "beta", "weights"],
         MethodName::Taubin => &["lambda", "mu", "count", "weights"],
         MethodName::Bilateral => &["sigma_c", "sigma_s", "radius", "rings", "units"],
+        MethodName::NormalFilter => normal_filter::PARAMETERS,
     }
 }
 
@@ -290,6 +312,7 @@ fn method_str(method: MethodName) -> &'static str {
         MethodName::Hc => "hc",
         MethodName::Taubin => "taubin",
         MethodName::Bilateral => "bilateral",
+        MethodName::NormalFilter => "normal-filter",
     }
 }
 
@@ -302,7 +325,7 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
 
     fn try_from(f: SmoothParamsFile) -> Result<Self, String> {
         let method = f.method.ok_or_else(|| {
-            "missing `method`; expected one of `laplace`, `hc`, `taubin`, `bilateral`".to_string()
+            "missing `method`; expected one of `laplace`, `hc`, `taubin`, `bilateral`, `normal-filter`".to_string()
         })?;
         let own = own_parameters(method);
         if let Some(stray) = f.set_names().into_iter().find(|n| !own.contains(n)) {
@@ -390,6 +413,10 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
                 }
                 (SmoothMethod::Bilateral(p), 3)
             }
+            MethodName::NormalFilter => {
+                let (p, iterations) = normal_filter::resolve(&f)?;
+                (SmoothMethod::NormalFilter(p), iterations)
+            }
         };
         let iterations = f.iterations.unwrap_or(default_iterations);
         check((1..=MAX_ITERATIONS).contains(&iterations), || {
@@ -404,7 +431,7 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
                     return Err("method = \"hc\" needs update = \"buffered\" (its three steps each read the previous step's results for all neighbours; spec pitfall 1)".into());
                 }
                 // Fleishman et al. compute every vertex from one snapshot (spec §6.2).
-                MethodName::Bilateral => {
+                MethodName::Bilateral | MethodName::NormalFilter => {
                     return Err("method = \"bilateral\" needs update = \"buffered\" (Fleishman et al. denoise every vertex from one snapshot, with normals of that snapshot)".into());
                 }
                 _ => {}
@@ -456,6 +483,10 @@ impl From<SmoothParams> for SmoothParamsFile {
                 f.rings = Some(b.rings);
                 f.units = Some(b.units);
             }
+            SmoothMethod::NormalFilter(n) => {
+                f.method = Some(MethodName::NormalFilter);
+                normal_filter::write_back(&n, &mut f);
+            }
         }
         f
     }
@@ -493,6 +524,9 @@ pub struct SmoothReport {
     /// Bilateral only: vertex updates skipped because the neighbourhood was empty or every
     /// weight underflowed (spec §6.2: leave the vertex where it is).
     pub empty_neighbourhoods: u64,
+    /// Normal filter only: vertex updates undone because a triangle would have flipped
+    /// against the input.
+    pub undone_updates: u64,
     /// Bilateral only: mean number of neighbours inside the ρ-ball per update.
     pub mean_neighbourhood: f64,
     /// Bilateral only: the share of those neighbours that came from the outermost ring
@@ -524,6 +558,8 @@ pub struct Smoother {
     /// The bilateral filter's candidate neighbourhoods and normal plan (empty for the other
     /// methods).
     bilateral: bilateral::Prepared,
+    /// The normal filter's face rings (empty for the other methods).
+    normal_filter: normal_filter::Prepared,
     params: SmoothParams,
     /// Model units per parameter unit for the bilateral lengths.
     length_unit: f64,
@@ -536,6 +572,7 @@ pub struct PassCounts {
     pub empty_neighbourhoods: u64,
     pub neighbours: u64,
     pub outer_ring_neighbours: u64,
+    pub undone_updates: u64,
 }
 
 impl Smoother {
@@ -547,6 +584,7 @@ impl Smoother {
                 units: LengthUnits::MeanEdge,
                 ..
             }) => mesh.mean_edge_length(),
+            SmoothMethod::NormalFilter(_) => mesh.mean_edge_length(),
             _ => 1.0,
         };
         let bilateral = match params.method {
@@ -558,9 +596,14 @@ impl Smoother {
             ),
             _ => bilateral::Prepared::default(),
         };
+        let normal_filter = match params.method {
+            SmoothMethod::NormalFilter(_) => normal_filter::Prepared::new(&topology),
+            _ => normal_filter::Prepared::default(),
+        };
         Smoother {
             graph,
             bilateral,
+            normal_filter,
             params: params.clone(),
             length_unit,
         }
@@ -596,6 +639,24 @@ impl Smoother {
                     empty_neighbourhoods: out.empty_neighbourhoods,
                     neighbours: out.neighbours,
                     outer_ring_neighbours: out.outer_ring_neighbours,
+                    undone_updates: 0,
+                };
+            }
+            SmoothMethod::NormalFilter(p) => {
+                let out = normal_filter::run(
+                    &self.normal_filter,
+                    graph,
+                    positions,
+                    &p,
+                    self.length_unit,
+                    iterations,
+                );
+                return PassCounts {
+                    passes: out.passes,
+                    empty_neighbourhoods: 0,
+                    neighbours: 0,
+                    outer_ring_neighbours: 0,
+                    undone_updates: out.undone,
                 };
             }
         };
@@ -604,6 +665,7 @@ impl Smoother {
             empty_neighbourhoods: 0,
             neighbours: 0,
             outer_ring_neighbours: 0,
+            undone_updates: 0,
         }
     }
 }
@@ -652,6 +714,7 @@ pub fn smooth(mesh: &mut Mesh, params: &SmoothParams) -> SmoothReport {
         fixed_boundary_vertices: graph.fixed_boundary_vertices(),
         isolated_vertices: graph.isolated_vertices(),
         empty_neighbourhoods: counts.empty_neighbourhoods,
+        undone_updates: counts.undone_updates,
         mean_neighbourhood: if updates > 0.0 {
             counts.neighbours as f64 / updates
         } else {
@@ -676,7 +739,7 @@ fn uses_cotangent(params: &SmoothParams) -> bool {
         SmoothMethod::Laplace(p) => p.weights,
         SmoothMethod::Hc(p) => p.weights,
         SmoothMethod::Taubin(p) => p.weights,
-        SmoothMethod::Bilateral(_) => Weights::Uniform,
+        SmoothMethod::Bilateral(_) | SmoothMethod::NormalFilter(_) => Weights::Uniform,
     };
     w == Weights::Cotangent
 }

@@ -24,7 +24,7 @@ fn with(method: MethodName, f: impl FnOnce(&mut SmoothParamsFile)) -> SmoothPara
 }
 
 /// Deterministic pseudo-random numbers in [-1, 1] (no RNG crate needed for unit tests).
-fn noise(seed: u64, count: usize) -> Vec<f64> {
+pub(super) fn noise(seed: u64, count: usize) -> Vec<f64> {
     let mut s = seed
         .wrapping_mul(6364136223846793005)
         .wrapping_add(1442695040888963407);
@@ -38,7 +38,7 @@ fn noise(seed: u64, count: usize) -> Vec<f64> {
         .collect()
 }
 
-fn signed_volume(m: &Mesh) -> f64 {
+pub(super) fn signed_volume(m: &Mesh) -> f64 {
     (0..m.triangle_count())
         .map(|t| {
             let [a, b, c] = m.triangle_positions(t);
@@ -53,7 +53,7 @@ fn rms_z(m: &Mesh) -> f64 {
 }
 
 /// A 20×20 grid with z noise of amplitude 0.1 on the interior vertices.
-fn noisy_grid() -> Mesh {
+pub(super) fn noisy_grid() -> Mesh {
     let mut m = grid(20, 20);
     let z = noise(7, m.positions.len());
     for (p, dz) in m.positions.iter_mut().zip(z) {
@@ -65,7 +65,7 @@ fn noisy_grid() -> Mesh {
     m
 }
 
-fn noisy_sphere() -> Mesh {
+pub(super) fn noisy_sphere() -> Mesh {
     let mut m = uv_sphere(1.0, 40, 80);
     let r = noise(11, m.positions.len());
     for (p, dr) in m.positions.iter_mut().zip(r) {
