@@ -39,43 +39,37 @@ fn canonical(c: &Corners, h: u32) -> bool {
     }
 }
 
+/// Splits every edge of the pass's start longer than `hi` at its middle, halving it
+/// until it is not (new edges wait for the next iteration: this bounds the pass).
 pub fn split_long(c: &mut Corners, lines: &Lines, hi: f64) -> usize {
     let mut n = 0;
-    let mut h = 0u32;
-    while (h as usize) < c.vtx.len() {
-        if !canonical(c, h) {
-            h += 1;
-            continue;
-        }
-        let (a, b) = (c.vtx[h as usize], c.dest(h));
-        let (pa, pb) = (c.pos[a as usize], c.pos[b as usize]);
-        if pa.distance(pb) <= hi || c.locked[a as usize] || c.locked[b as usize] {
-            h += 1;
-            continue;
-        }
-        let mid = 0.5 * (pa + pb);
-        let seg = c.seg[h as usize];
-        let (m, seg) = if c.is_constrained(h) && seg != NIL {
-            (mid, lines.project(mid, seg).1)
-        } else {
-            (mid, NIL)
-        };
-        ops::split(c, h, m, seg);
-        n += 1;
-        if std::env::var_os("REMESH_CHECK").is_some() {
-            if let Err(e) = c.check() {
-                panic!("split {n} of {h} ({a} {b}): {e}");
+    let edges = c.vtx.len() as u32;
+    for h in 0..edges {
+        for _ in 0..MAX_HALVINGS {
+            if !canonical(c, h) {
+                break;
             }
-        }
-        if n % 100000 == 0 {
-            eprintln!(
-                "split {n} h {h} a {a} b {b} {pa} {pb} faces {}",
-                c.face_count()
-            );
+            let (a, b) = (c.vtx[h as usize], c.dest(h));
+            let (pa, pb) = (c.pos[a as usize], c.pos[b as usize]);
+            if !(pa.distance(pb) > hi) || c.locked[a as usize] || c.locked[b as usize] {
+                break;
+            }
+            let mid = 0.5 * (pa + pb);
+            let seg = c.seg[h as usize];
+            let seg = if c.is_constrained(h) && seg != NIL {
+                lines.project(mid, seg).1
+            } else {
+                NIL
+            };
+            ops::split(c, h, mid, seg);
+            n += 1;
         }
     }
     n
 }
+
+/// An edge is halved at most this many times in one pass.
+const MAX_HALVINGS: usize = 32;
 
 /// The vertex that should go: the one with the freer kind, `a` on a tie.
 fn order(c: &Corners, a: u32, b: u32) -> [(u32, u32); 2] {
@@ -292,27 +286,13 @@ pub fn run(c: &mut Corners, lines: &Lines, bvh: &TriangleBvh, l: f64, iterations
     let (lo, hi) = (0.8 * l, 4.0 / 3.0 * l);
     let mut sc = Scratch::default();
     let mut counts = Counts::default();
-    let trace = std::env::var_os("REMESH_TRACE").is_some();
-    let mut t = std::time::Instant::now();
-    let mut lap = |what: &str| {
-        if trace {
-            eprintln!("{what}: {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
-        }
-        t = std::time::Instant::now();
-    };
     for _ in 0..iterations {
         counts.splits += split_long(c, lines, hi);
-        lap("split");
         counts.collapses += collapse_short(c, lo, hi, &mut sc);
-        lap("collapse");
         counts.valence_flips += equalize_valences(c, &mut sc);
-        lap("valence");
         relax(c);
-        lap("relax");
         project(c, lines, bvh);
-        lap("project");
         counts.angle_flips += flip_angles(c, &mut sc);
-        lap("angles");
     }
     counts
 }

@@ -183,15 +183,8 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
     let chart_of_input = c.chart.clone();
     let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
     let l = params.target_length(mesh);
-    if std::env::var_os("REMESH_TRACE").is_some() {
-        eprintln!("setup {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
-    }
     let counts = isotropic::run(&mut c, &lines, &bvh, l, params.iterations);
-    let t = Instant::now();
     let out = export::export(&c, &lines, mesh, &chart_of_input, &bvh);
-    if std::env::var_os("REMESH_TRACE").is_some() {
-        eprintln!("export {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
-    }
     let report = RemeshReport {
         method: params.method,
         edge_length: l,
