@@ -32,9 +32,8 @@ pub fn build(mesh: &Mesh, topo: &Topology, lines: &Lines) -> Corners {
     for e in 0..topo.edge_count() as u32 {
         let sides = topo.edge_sides(e);
         let s = lines.of_edge[e as usize];
-        if sides.len() == 2 && s == NIL {
-            c.link(sides[0], sides[1]);
-        } else if sides.len() == 2 && lines.kind[s as usize] != LineKind::NonManifold {
+        // A non-manifold or inconsistent edge stays open on every side.
+        if sides.len() == 2 && (s == NIL || lines.kind[s as usize] != LineKind::NonManifold) {
             c.link(sides[0], sides[1]);
         }
         for &h in sides {

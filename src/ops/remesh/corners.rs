@@ -18,7 +18,7 @@ pub fn next(h: u32) -> u32 {
 
 #[inline]
 pub fn prev(h: u32) -> u32 {
-    if h % 3 == 0 { h + 2 } else { h - 1 }
+    if h.is_multiple_of(3) { h + 2 } else { h - 1 }
 }
 
 /// The working mesh. Face labels (`chart`, `material`) are carried by every operation;
@@ -116,10 +116,10 @@ impl Corners {
         self.fan(v, hs);
         ring.clear();
         ring.extend(hs.iter().map(|&h| self.dest(h)));
-        if let Some(&last) = hs.last() {
-            if self.rotate(last) == NIL {
-                ring.push(self.vtx[prev(last) as usize]);
-            }
+        if let Some(&last) = hs.last()
+            && self.rotate(last) == NIL
+        {
+            ring.push(self.vtx[prev(last) as usize]);
         }
     }
 

@@ -51,7 +51,10 @@ pub fn split_long(c: &mut Corners, lines: &Lines, hi: f64) -> usize {
             }
             let (a, b) = (c.vtx[h as usize], c.dest(h));
             let (pa, pb) = (c.pos[a as usize], c.pos[b as usize]);
-            if !(pa.distance(pb) > hi) || c.locked[a as usize] || c.locked[b as usize] {
+            if pa.distance(pb).partial_cmp(&hi) != Some(std::cmp::Ordering::Greater)
+                || c.locked[a as usize]
+                || c.locked[b as usize]
+            {
                 break;
             }
             let mid = 0.5 * (pa + pb);

@@ -174,7 +174,7 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
     if mesh.triangles.is_empty() {
         return Err(RemeshError::Empty);
     }
-    if !(mesh.bounding_box_diagonal() > 0.0) {
+    if mesh.bounding_box_diagonal().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(RemeshError::Flat);
     }
     let topo = Topology::new(mesh);
