@@ -32,9 +32,9 @@ fn check(rel: &str, mesh: &Mesh) -> Mesh {
         a.after.non_manifold_edges <= a.before.non_manifold_edges,
         "{rel}: {a:?}"
     );
-    assert_eq!(a.chart_jumps, 0, "{rel}");
-    assert_eq!(a.seam_vertices_off_seam, 0, "{rel}");
-    assert_eq!(a.zero_area_faces, 0, "{rel}");
+    assert_eq!(a.chart_jumps, 0, "{rel}: chart jumps {a:?}");
+    assert_eq!(a.seam_vertices_off_seam, 0, "{rel}: seam vertices {a:?}");
+    assert_eq!(a.zero_area_faces, 0, "{rel}: zero-area {a:?}");
     let m = compare(&out, mesh, &MetricsOptions::default()).unwrap();
     assert!(
         m.distance.mean_relative <= 0.000_20,

@@ -63,16 +63,20 @@ impl<'a> ChartIndex<'a> {
         }
     }
 
-    /// The texture coordinate at `p` (a point of the input) in `chart`, located from
-    /// `inside` (a point just inside the output face), starting from input triangle `hint`.
-    fn uv(&self, chart: u32, p: DVec3, inside: DVec3, hint: u32) -> Option<DVec2> {
+    /// The input triangle of `chart` closest to `p`, searched from input triangle `hint`.
+    fn closest(&self, chart: u32, p: DVec3, hint: u32) -> Option<u32> {
         let bvh = match self.bvhs.is_empty() {
             true => self.whole,
             false => &self.bvhs[*self.slot.get(&chart)?],
         };
-        let start = (self.chart_of_input[hint as usize] == chart).then(|| bvh.hit_on(inside, hint));
-        let hit = bvh.closest(inside, start)?;
-        self.uv_on(hit.triangle, p)
+        let start = (self.chart_of_input[hint as usize] == chart).then(|| bvh.hit_on(p, hint));
+        bvh.closest(p, start).map(|h| h.triangle)
+    }
+
+    /// The texture coordinate at `p` (a point of the input) in `chart`, located from
+    /// `inside` (a point just inside the output face), starting from input triangle `hint`.
+    fn uv(&self, chart: u32, p: DVec3, inside: DVec3, hint: u32) -> Option<DVec2> {
+        self.uv_on(self.closest(chart, inside, hint)?, p)
     }
 
     /// The texture coordinate of the point of input triangle `t` closest to `p`.
@@ -106,7 +110,8 @@ pub fn export(
             }
         }
     }
-    let uvs = corner_uvs(c, lines, input, chart_of_input, bvh, &faces);
+    let charts = ChartIndex::new(input, chart_of_input, bvh);
+    let uvs = corner_uvs(c, lines, input, &charts, &faces);
     let mut out = Mesh {
         positions: live.iter().map(|&v| c.pos[v as usize]).collect(),
         materials: input.materials.clone(),
@@ -125,7 +130,8 @@ pub fn export(
         out.triangle_materials = faces.iter().map(|&f| c.material[f]).collect();
     }
     let hints: Vec<u32> = live.iter().map(|&v| c.vtri[v as usize]).collect();
-    out.triangle_origins = origins(&out, input, bvh, &hints);
+    let face_charts: Vec<u32> = faces.iter().map(|&f| c.chart[f]).collect();
+    out.triangle_origins = origins(&out, &charts, &face_charts, &hints);
     if !input.colors.is_empty() {
         out.colors = colours(&out, input, bvh, &hints);
     }
@@ -166,14 +172,13 @@ fn corner_uvs(
     c: &Corners,
     lines: &Lines,
     input: &Mesh,
-    chart_of_input: &[u32],
-    bvh: &TriangleBvh,
+    charts: &ChartIndex,
     faces: &[usize],
 ) -> Option<FaceUvs> {
     if !input.has_texcoords() {
         return None;
     }
-    let charts = ChartIndex::new(input, chart_of_input, bvh);
+    let chart_of_input = charts.chart_of_input;
     Some(
         faces
             .par_iter()
@@ -232,17 +237,18 @@ fn line_side(
     best.map(|(_, t)| t)
 }
 
-/// The input triangle closest to each output face's centroid (mapped through the input's
-/// own origins); `hints` are the output vertices' last input triangles.
-fn origins(out: &Mesh, input: &Mesh, bvh: &TriangleBvh, hints: &[u32]) -> Vec<Index> {
+/// The input triangle of the face's own chart closest to each output face's centroid
+/// (mapped through the input's own origins); `hints` are the output vertices' last input
+/// triangles.
+fn origins(out: &Mesh, charts: &ChartIndex, face_charts: &[u32], hints: &[u32]) -> Vec<Index> {
     (0..out.triangles.len())
         .into_par_iter()
         .map(|t| {
             let [a, b, c] = out.triangle_positions(t);
             let centre = (a + b + c) / 3.0;
             let hint = hints[out.triangle_vertices(t)[0] as usize];
-            let hit = bvh.closest(centre, Some(bvh.hit_on(centre, hint)));
-            hit.map_or(0, |h| input.triangle_origin(h.triangle as usize))
+            let hit = charts.closest(face_charts[t], centre, hint);
+            hit.map_or(0, |h| charts.input.triangle_origin(h as usize))
         })
         .collect()
 }
