@@ -56,15 +56,20 @@ pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DV
     (a + ab * v + ac * w, DVec3::new(1.0 - v - w, v, w))
 }
 
-/// The distance from `p` to the segment `a b` (a point when `a == b`).
-pub fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+/// The point of the segment `a b` closest to `p` (`a` when `a == b`).
+pub fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
     let ab = b - a;
     let t = if ab.length_squared() > 0.0 {
         ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
     } else {
         0.0
     };
-    (a + ab * t).distance(p)
+    a + ab * t
+}
+
+/// The distance from `p` to the segment `a b` (a point when `a == b`).
+pub fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    closest_on_segment(p, a, b).distance(p)
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@ pub mod crop;
 pub mod decimate;
 pub mod fair;
 pub mod normals;
+pub mod remesh;
 pub mod seam_fix;
 pub mod smooth;
 pub mod subdivide;

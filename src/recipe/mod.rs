@@ -10,6 +10,7 @@ use crate::ops::crop::CropParams;
 use crate::ops::decimate::DecimateParams;
 use crate::ops::fair::{FairParams, RelaxParams};
 use crate::ops::normals::NormalsParams;
+use crate::ops::remesh::RemeshParams;
 use crate::ops::seam_fix::SeamFixParams;
 use crate::ops::smooth::SmoothParams;
 use crate::preview::PreviewOptions;
@@ -217,6 +218,7 @@ pub enum Step {
     Fair(FairParams),
     Smooth(SmoothParams),
     Decimate(DecimateParams),
+    Remesh(RemeshParams),
     SeamFix(SeamFixParams),
     Normals(NormalsParams),
 }
@@ -229,6 +231,7 @@ impl Step {
             Step::Fair(_) => "fair",
             Step::Smooth(_) => "smooth",
             Step::Decimate(_) => "decimate",
+            Step::Remesh(_) => "remesh",
             Step::SeamFix(_) => "seam_fix",
             Step::Normals(_) => "normals",
         }
@@ -239,6 +242,7 @@ impl Step {
             Step::Normals(p) => p.validate(),
             Step::Crop(p) => p.validate(),
             Step::Decimate(p) => p.validate(),
+            Step::Remesh(p) => p.validate(),
             Step::SeamFix(p) => p.validate(),
             Step::Relax(p) => p.validate(),
             Step::Fair(p) => p.validate(),

@@ -101,6 +101,7 @@ impl Step {
             Step::Fair(p) => p,
             Step::Smooth(p) => p,
             Step::Decimate(p) => p,
+            Step::Remesh(p) => p,
             Step::SeamFix(p) => p,
             Step::Normals(p) => p,
         }
@@ -136,6 +137,14 @@ impl RecipeStep for ops::decimate::DecimateParams {
     /// itself.
     fn leaves_a_core_idle(&self, mesh: &Mesh) -> bool {
         ops::decimate::halves::wanted(mesh, self).is_none()
+    }
+}
+
+impl RecipeStep for ops::remesh::RemeshParams {
+    fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
+        let (out, report) = ops::remesh::remesh(mesh, self).map_err(|e| e.to_string())?;
+        cx.replaced(std::mem::replace(mesh, out));
+        Ok(figures(report))
     }
 }
 

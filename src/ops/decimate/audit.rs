@@ -38,8 +38,9 @@ fn key(p: DVec3) -> [u64; 3] {
     ]
 }
 
-/// Charts: triangles joined across manifold edges that are not texture seams.
-fn charts(mesh: &Mesh, topo: &Topology) -> Vec<u32> {
+/// Charts: triangles joined across manifold edges that are not texture seams (also the
+/// remesher's face labels).
+pub fn charts(mesh: &Mesh, topo: &Topology) -> Vec<u32> {
     let n = mesh.triangles.len();
     let mut parent: Vec<u32> = (0..n as u32).collect();
     fn find(p: &mut [u32], mut x: u32) -> u32 {

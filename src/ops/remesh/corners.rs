@@ -1,0 +1,220 @@
+//! The remesher's connectivity: a corner table (three half-edges per face, each with its
+//! opposite) that supports the four local operations of isotropic remeshing: edge split,
+//! edge collapse, edge flip and the vertex ring. Half-edge `h` of face `h / 3` runs from
+//! `vtx[h]` to `vtx[next(h)]`.
+//!
+//! Vertices whose triangles do not form one consistently oriented fan (non-manifold
+//! vertices and the ends of non-manifold or inconsistent edges) are *locked*: the operations
+//! never take them as an endpoint, so their partial ring is never relied on.
+
+use glam::DVec3;
+
+pub const NIL: u32 = u32::MAX;
+
+#[inline]
+pub fn next(h: u32) -> u32 {
+    if h % 3 == 2 { h - 2 } else { h + 1 }
+}
+
+#[inline]
+pub fn prev(h: u32) -> u32 {
+    if h.is_multiple_of(3) { h + 2 } else { h - 1 }
+}
+
+/// The working mesh. Face labels (`chart`, `material`) are carried by every operation;
+/// `seg` marks a constrained edge with the input polyline segment it lies near (`NIL` for a
+/// free edge; a border half-edge is constrained by having no opposite).
+#[derive(Debug, Clone, Default)]
+pub struct Corners {
+    pub vtx: Vec<u32>,
+    pub opp: Vec<u32>,
+    pub seg: Vec<u32>,
+    pub face_dead: Vec<bool>,
+    pub chart: Vec<u32>,
+    pub material: Vec<u32>,
+    pub pos: Vec<DVec3>,
+    /// One outgoing half-edge per vertex; the border one when the vertex is on a border,
+    /// so that a counter-clockwise walk from it meets the whole fan.
+    pub out: Vec<u32>,
+    pub locked: Vec<bool>,
+    pub vertex_dead: Vec<bool>,
+    pub kind: Vec<VKind>,
+    /// Line vertices: a segment of their line near them.
+    pub vseg: Vec<u32>,
+    /// The input triangle the vertex was last projected onto (the search's first guess).
+    pub vtri: Vec<u32>,
+}
+
+/// What a vertex of the working mesh may do (ordered from the freest).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum VKind {
+    /// Moves on the surface; collapses onto any neighbour.
+    Free,
+    /// On one input line: moves along it, collapses only along it.
+    Line,
+    /// Never moves and never goes (line ends and junctions, locked vertices).
+    Corner,
+}
+
+impl Corners {
+    pub fn face_count(&self) -> usize {
+        self.face_dead.len()
+    }
+
+    pub fn live_faces(&self) -> usize {
+        self.face_dead.iter().filter(|&&d| !d).count()
+    }
+
+    #[inline]
+    pub fn dest(&self, h: u32) -> u32 {
+        self.vtx[next(h) as usize]
+    }
+
+    #[inline]
+    pub fn is_border(&self, h: u32) -> bool {
+        self.opp[h as usize] == NIL
+    }
+
+    /// The edge may not be flipped, and only split or collapsed along its polyline.
+    #[inline]
+    pub fn is_constrained(&self, h: u32) -> bool {
+        self.is_border(h) || self.seg[h as usize] != NIL
+    }
+
+    #[inline]
+    pub fn link(&mut self, a: u32, b: u32) {
+        if a != NIL {
+            self.opp[a as usize] = b;
+        }
+        if b != NIL {
+            self.opp[b as usize] = a;
+        }
+    }
+
+    /// The next outgoing half-edge counter-clockwise around `vtx[h]`, `NIL` at a border.
+    #[inline]
+    pub fn rotate(&self, h: u32) -> u32 {
+        self.opp[prev(h) as usize]
+    }
+
+    /// The outgoing half-edges of `v`, counter-clockwise from `out[v]`.
+    pub fn fan(&self, v: u32, hs: &mut Vec<u32>) {
+        hs.clear();
+        let start = self.out[v as usize];
+        let mut h = start;
+        loop {
+            hs.push(h);
+            h = self.rotate(h);
+            if h == NIL || h == start || hs.len() > MAX_FAN {
+                break;
+            }
+        }
+    }
+
+    /// The neighbours of `v` in ring order (the last one of a border vertex closes no face).
+    pub fn ring(&self, v: u32, hs: &mut Vec<u32>, ring: &mut Vec<u32>) {
+        self.fan(v, hs);
+        ring.clear();
+        ring.extend(hs.iter().map(|&h| self.dest(h)));
+        if let Some(&last) = hs.last()
+            && self.rotate(last) == NIL
+        {
+            ring.push(self.vtx[prev(last) as usize]);
+        }
+    }
+
+    pub fn is_border_vertex(&self, v: u32) -> bool {
+        self.is_border(self.out[v as usize])
+    }
+
+    /// Sets `out[v]` from any outgoing half-edge `h`: turns clockwise to the border one if
+    /// there is one.
+    pub fn fix_out(&mut self, v: u32, h: u32) {
+        let mut g = h;
+        let mut steps = 0;
+        while self.opp[g as usize] != NIL && steps <= MAX_FAN {
+            g = next(self.opp[g as usize]);
+            steps += 1;
+            if g == h {
+                break;
+            }
+        }
+        self.out[v as usize] = g;
+    }
+
+    /// Appends a vertex and returns its index.
+    pub fn add_vertex(&mut self, p: DVec3, kind: VKind, vseg: u32, vtri: u32) -> u32 {
+        self.pos.push(p);
+        self.out.push(NIL);
+        self.locked.push(false);
+        self.vertex_dead.push(false);
+        self.kind.push(kind);
+        self.vseg.push(vseg);
+        self.vtri.push(vtri);
+        (self.pos.len() - 1) as u32
+    }
+
+    /// Appends a face with the labels of face `like`; returns its first half-edge.
+    pub fn add_face(&mut self, v: [u32; 3], like: usize) -> u32 {
+        let h = self.vtx.len() as u32;
+        self.vtx.extend(v);
+        self.opp.extend([NIL; 3]);
+        self.seg.extend([NIL; 3]);
+        self.face_dead.push(false);
+        self.chart.push(self.chart[like]);
+        self.material.push(self.material[like]);
+        h
+    }
+
+    pub fn face_positions(&self, f: usize) -> [DVec3; 3] {
+        [0, 1, 2].map(|i| self.pos[self.vtx[3 * f + i] as usize])
+    }
+
+    pub fn face_cross(&self, f: usize) -> DVec3 {
+        let [a, b, c] = self.face_positions(f);
+        (b - a).cross(c - a)
+    }
+}
+
+/// A fan longer than this is not walked further (a guard against a corrupted table; a
+/// real vertex this busy is locked).
+pub const MAX_FAN: usize = 4096;
+
+impl Corners {
+    /// Checks the table's invariants: opposite half-edges are mutual and run the other
+    /// way, every live vertex's `out` leaves it from a live face, constrained marks match
+    /// on both sides. Used by tests; a failure is a bug.
+    pub fn check(&self) -> Result<(), String> {
+        for h in 0..self.vtx.len() as u32 {
+            if self.face_dead[(h / 3) as usize] {
+                continue;
+            }
+            let g = self.opp[h as usize];
+            if g == NIL {
+                continue;
+            }
+            if self.face_dead[(g / 3) as usize] {
+                return Err(format!("half-edge {h}: opposite {g} is in a dead face"));
+            }
+            if self.opp[g as usize] != h {
+                return Err(format!("half-edge {h}: opposite {g} is not mutual"));
+            }
+            if self.vtx[g as usize] != self.dest(h) || self.dest(g) != self.vtx[h as usize] {
+                return Err(format!("half-edge {h}: opposite {g} does not run back"));
+            }
+            if self.seg[g as usize] != self.seg[h as usize] {
+                return Err(format!("half-edge {h}: constraint differs from {g}'s"));
+            }
+        }
+        for v in 0..self.pos.len() {
+            if self.vertex_dead[v] {
+                continue;
+            }
+            let h = self.out[v];
+            if h == NIL || self.face_dead[(h / 3) as usize] || self.vtx[h as usize] != v as u32 {
+                return Err(format!("vertex {v}: out {h} does not leave it"));
+            }
+        }
+        Ok(())
+    }
+}

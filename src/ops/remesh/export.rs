@@ -1,0 +1,277 @@
+//! The working mesh back to a [`Mesh`]: live vertices and faces compacted, each corner's
+//! texture coordinate taken from the input within the face's own chart, per-vertex colours
+//! from the input, and the input triangle each face descends from.
+//!
+//! Texture rule: a corner at vertex `v` of face `f` is located on the input by the closest
+//! point, among the triangles of `f`'s chart, to `v` moved a little into `f`; its texture
+//! coordinate is that input triangle's, interpolated at `v` (barycentric). Nudging into the
+//! face picks the right side of a seam that runs inside one chart; searching only the chart
+//! keeps every corner in the chart its face was cut from, so the photo stays where it was.
+
+use super::corners::{Corners, NIL, VKind};
+use super::lines::Lines;
+use crate::geom::bvh::TriangleBvh;
+use crate::geom::closest_on_triangle;
+use crate::mesh::{Index, Mesh, Wedge};
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// How far into its face a corner is moved before its chart is searched (fraction of the
+/// way to the face's centroid).
+const NUDGE: f64 = 1e-3;
+
+/// Two texture coordinates of one vertex closer than this (texture units, 1/250 of a texel
+/// of a 4096² image) are one wedge: they differ by rounding only.
+const SAME_UV: f64 = 1e-6;
+
+/// Per chart label, the BVH over its input triangles (the whole input's when there is one
+/// chart).
+struct ChartIndex<'a> {
+    input: &'a Mesh,
+    chart_of_input: &'a [u32],
+    slot: HashMap<u32, usize>,
+    bvhs: Vec<TriangleBvh<'a>>,
+    whole: &'a TriangleBvh<'a>,
+}
+
+impl<'a> ChartIndex<'a> {
+    fn new(input: &'a Mesh, chart_of_input: &'a [u32], whole: &'a TriangleBvh<'a>) -> Self {
+        let mut slot = HashMap::new();
+        let mut members: Vec<Vec<u32>> = Vec::new();
+        for (t, &ch) in chart_of_input.iter().enumerate() {
+            let k = *slot.entry(ch).or_insert_with(|| {
+                members.push(Vec::new());
+                members.len() - 1
+            });
+            members[k].push(t as u32);
+        }
+        let bvhs = if members.len() > 1 {
+            members
+                .into_par_iter()
+                .map(|m| TriangleBvh::new(input, m))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        ChartIndex {
+            input,
+            chart_of_input,
+            slot,
+            bvhs,
+            whole,
+        }
+    }
+
+    /// The input triangle of `chart` closest to `p`, searched from input triangle `hint`.
+    fn closest(&self, chart: u32, p: DVec3, hint: u32) -> Option<u32> {
+        let bvh = match self.bvhs.is_empty() {
+            true => self.whole,
+            false => &self.bvhs[*self.slot.get(&chart)?],
+        };
+        let start = (self.chart_of_input[hint as usize] == chart).then(|| bvh.hit_on(p, hint));
+        bvh.closest(p, start).map(|h| h.triangle)
+    }
+
+    /// The texture coordinate at `p` (a point of the input) in `chart`, located from
+    /// `inside` (a point just inside the output face), starting from input triangle `hint`.
+    fn uv(&self, chart: u32, p: DVec3, inside: DVec3, hint: u32) -> Option<DVec2> {
+        self.uv_on(self.closest(chart, inside, hint)?, p)
+    }
+
+    /// The texture coordinate of the point of input triangle `t` closest to `p`.
+    fn uv_on(&self, t: u32, p: DVec3) -> Option<DVec2> {
+        let input = self.input;
+        let [a, b, c] = input.triangle_positions(t as usize);
+        let (_, w) = closest_on_triangle(p, a, b, c);
+        let uv = input.triangles[t as usize].map(|k| input.wedge_texcoord(k));
+        Some(uv[0]? * w.x + uv[1]? * w.y + uv[2]? * w.z)
+    }
+}
+
+/// Builds the output mesh. `chart_of_input` is the chart label of each input triangle
+/// (the labels the working faces carry).
+pub fn export(
+    c: &Corners,
+    lines: &Lines,
+    input: &Mesh,
+    chart_of_input: &[u32],
+    bvh: &TriangleBvh,
+) -> Mesh {
+    let faces: Vec<usize> = (0..c.face_count()).filter(|&f| !c.face_dead[f]).collect();
+    let mut index = vec![u32::MAX; c.pos.len()];
+    let mut live = Vec::new();
+    for &f in &faces {
+        for k in 0..3 {
+            let v = c.vtx[3 * f + k] as usize;
+            if index[v] == u32::MAX {
+                index[v] = live.len() as u32;
+                live.push(v as u32);
+            }
+        }
+    }
+    let charts = ChartIndex::new(input, chart_of_input, bvh);
+    let uvs = corner_uvs(c, lines, input, &charts, &faces);
+    let mut out = Mesh {
+        positions: live.iter().map(|&v| c.pos[v as usize]).collect(),
+        materials: input.materials.clone(),
+        ..Mesh::default()
+    };
+    let mut wedges_at: Vec<Vec<Index>> = vec![Vec::new(); live.len()];
+    for (i, &f) in faces.iter().enumerate() {
+        let tri = [0, 1, 2].map(|k| {
+            let v = index[c.vtx[3 * f + k] as usize];
+            let uv = uvs.as_ref().and_then(|u| u[i][k]);
+            wedge(&mut out, &mut wedges_at[v as usize], v, uv)
+        });
+        out.triangles.push(tri);
+    }
+    if !input.triangle_materials.is_empty() {
+        out.triangle_materials = faces.iter().map(|&f| c.material[f]).collect();
+    }
+    let hints: Vec<u32> = live.iter().map(|&v| c.vtri[v as usize]).collect();
+    let face_charts: Vec<u32> = faces.iter().map(|&f| c.chart[f]).collect();
+    out.triangle_origins = origins(&out, &charts, &face_charts, &hints);
+    if !input.colors.is_empty() {
+        out.colors = colours(&out, input, bvh, &hints);
+    }
+    out
+}
+
+/// The wedge of vertex `v` with texture coordinate `uv`: an existing one of `v` within
+/// [`SAME_UV`], or a new one.
+fn wedge(out: &mut Mesh, known: &mut Vec<Index>, v: u32, uv: Option<DVec2>) -> Index {
+    let same = |w: &Index| match (out.wedge_texcoord(*w), uv) {
+        (Some(a), Some(b)) => a.distance(b) <= SAME_UV,
+        (None, None) => true,
+        _ => false,
+    };
+    if let Some(&w) = known.iter().find(|w| same(w)) {
+        return w;
+    }
+    let texcoord = uv.map(|p| {
+        out.texcoords.push(p);
+        (out.texcoords.len() - 1) as Index
+    });
+    out.wedges.push(Wedge {
+        vertex: v,
+        texcoord,
+        normal: None,
+    });
+    let w = (out.wedges.len() - 1) as Index;
+    known.push(w);
+    w
+}
+
+type FaceUvs = Vec<[Option<DVec2>; 3]>;
+
+/// Each face corner's texture coordinate: a free vertex (inside one chart, on the input
+/// triangle it was projected onto) from that triangle; a line vertex from the chart's
+/// triangle found just inside the face.
+fn corner_uvs(
+    c: &Corners,
+    lines: &Lines,
+    input: &Mesh,
+    charts: &ChartIndex,
+    faces: &[usize],
+) -> Option<FaceUvs> {
+    if !input.has_texcoords() {
+        return None;
+    }
+    let chart_of_input = charts.chart_of_input;
+    Some(
+        faces
+            .par_iter()
+            .map(|&f| {
+                let p = c.face_positions(f);
+                let centre = (p[0] + p[1] + p[2]) / 3.0;
+                let chart = c.chart[f];
+                [0, 1, 2].map(|k| {
+                    let v = c.vtx[3 * f + k] as usize;
+                    let hint = c.vtri[v];
+                    let inside = p[k] + NUDGE * (centre - p[k]);
+                    match c.kind[v] {
+                        VKind::Free if chart_of_input[hint as usize] == chart => {
+                            charts.uv_on(hint, p[k])
+                        }
+                        VKind::Line if c.vseg[v] != NIL => {
+                            let side =
+                                line_side(input, lines, c.vseg[v], chart, chart_of_input, inside);
+                            match side {
+                                Some(t) => charts.uv_on(t, p[k]),
+                                None => charts.uv(chart, p[k], inside, hint),
+                            }
+                        }
+                        _ => charts.uv(chart, p[k], inside, hint),
+                    }
+                })
+            })
+            .collect(),
+    )
+}
+
+/// The input triangle of line segment `seg` in `chart` on the side of `inside` (a line
+/// vertex lies on its segment, so that triangle holds it exactly).
+fn line_side(
+    input: &Mesh,
+    lines: &Lines,
+    seg: u32,
+    chart: u32,
+    chart_of_input: &[u32],
+    inside: DVec3,
+) -> Option<u32> {
+    let input_tris = lines.tris[seg as usize];
+    let mut best: Option<(f64, u32)> = None;
+    for t in input_tris {
+        if t == NIL || chart_of_input[t as usize] != chart {
+            continue;
+        }
+        let [a, b, c] = input.triangle_positions(t as usize);
+        let d = closest_on_triangle(inside, a, b, c)
+            .0
+            .distance_squared(inside);
+        if best.is_none_or(|(bd, _)| d < bd) {
+            best = Some((d, t));
+        }
+    }
+    best.map(|(_, t)| t)
+}
+
+/// The input triangle of the face's own chart closest to each output face's centroid
+/// (mapped through the input's own origins); `hints` are the output vertices' last input
+/// triangles.
+fn origins(out: &Mesh, charts: &ChartIndex, face_charts: &[u32], hints: &[u32]) -> Vec<Index> {
+    (0..out.triangles.len())
+        .into_par_iter()
+        .map(|t| {
+            let [a, b, c] = out.triangle_positions(t);
+            let centre = (a + b + c) / 3.0;
+            let hint = hints[out.triangle_vertices(t)[0] as usize];
+            let hit = charts.closest(face_charts[t], centre, hint);
+            hit.map_or(0, |h| charts.input.triangle_origin(h as usize))
+        })
+        .collect()
+}
+
+/// Per-vertex colours interpolated at each output vertex's closest input point.
+fn colours(out: &Mesh, input: &Mesh, bvh: &TriangleBvh, hints: &[u32]) -> Vec<[u8; 4]> {
+    out.positions
+        .par_iter()
+        .zip(hints.par_iter())
+        .map(|(&p, &hint)| {
+            let Some(hit) = bvh.closest(p, Some(bvh.hit_on(p, hint))) else {
+                return [255; 4];
+            };
+            let vs = input.triangle_vertices(hit.triangle as usize);
+            let w = hit.bary.to_array();
+            let mut rgba = [0u8; 4];
+            for (ch, slot) in rgba.iter_mut().enumerate() {
+                let x: f64 = (0..3)
+                    .map(|k| w[k] * input.colors[vs[k] as usize][ch] as f64)
+                    .sum();
+                *slot = x.round().clamp(0.0, 255.0) as u8;
+            }
+            rgba
+        })
+        .collect()
+}

@@ -1,0 +1,301 @@
+//! Isotropic remeshing after Botsch & Kobbelt (2004), *A remeshing approach to
+//! multiresolution modeling*, §4: per iteration, split edges longer than 4/3·L, collapse
+//! edges shorter than 4/5·L when no edge of the result is longer than 4/3·L, flip edges
+//! towards valence 6 (4 on a border), relax every vertex tangentially and project it back
+//! onto the input. Lines (borders, seams, features) are split and collapsed only along
+//! themselves, their vertices relax along them and are projected onto them.
+//!
+//! The topological passes are sequential in half-edge order; relaxation and projection
+//! compute every vertex from the previous positions in parallel, so the result does not
+//! depend on the thread count.
+
+use super::corners::{Corners, NIL, VKind, prev};
+use super::lines::Lines;
+use super::ops::{self, Scratch};
+use crate::geom::bvh::TriangleBvh;
+use glam::DVec3;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// What the passes did, summed over the iterations.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct Counts {
+    pub splits: usize,
+    pub collapses: usize,
+    pub valence_flips: usize,
+    pub angle_flips: usize,
+}
+
+/// At most this many collapse sweeps per iteration: a dense input needs several to come
+/// down to the target length, each sweep removes most of what it can.
+const COLLAPSE_SWEEPS: usize = 8;
+
+/// One canonical half-edge per live edge: `h` itself unless its opposite has a lower index.
+#[inline]
+fn canonical(c: &Corners, h: u32) -> bool {
+    !c.face_dead[(h / 3) as usize] && {
+        let g = c.opp[h as usize];
+        g == NIL || h < g
+    }
+}
+
+/// Splits every edge of the pass's start longer than `hi` at its middle, halving it
+/// until it is not (new edges wait for the next iteration: this bounds the pass).
+pub fn split_long(c: &mut Corners, lines: &Lines, hi: f64) -> usize {
+    let mut n = 0;
+    let edges = c.vtx.len() as u32;
+    for h in 0..edges {
+        for _ in 0..MAX_HALVINGS {
+            if !canonical(c, h) {
+                break;
+            }
+            let (a, b) = (c.vtx[h as usize], c.dest(h));
+            let (pa, pb) = (c.pos[a as usize], c.pos[b as usize]);
+            if pa.distance(pb).partial_cmp(&hi) != Some(std::cmp::Ordering::Greater)
+                || c.locked[a as usize]
+                || c.locked[b as usize]
+            {
+                break;
+            }
+            let mid = 0.5 * (pa + pb);
+            let seg = c.seg[h as usize];
+            let seg = if c.is_constrained(h) && seg != NIL {
+                lines.project(mid, seg).1
+            } else {
+                NIL
+            };
+            ops::split(c, h, mid, seg);
+            n += 1;
+        }
+    }
+    n
+}
+
+/// An edge is halved at most this many times in one pass.
+const MAX_HALVINGS: usize = 32;
+
+/// The vertex that should go: the one with the freer kind, `a` on a tie.
+fn order(c: &Corners, a: u32, b: u32) -> [(u32, u32); 2] {
+    if c.kind[b as usize] < c.kind[a as usize] {
+        [(b, a), (a, b)]
+    } else {
+        [(a, b), (b, a)]
+    }
+}
+
+pub fn collapse_short(c: &mut Corners, lo: f64, hi: f64, sc: &mut Scratch) -> usize {
+    let mut total = 0;
+    for _ in 0..COLLAPSE_SWEEPS {
+        let mut n = 0;
+        for h in 0..c.vtx.len() as u32 {
+            if !canonical(c, h) {
+                continue;
+            }
+            let (a, b) = (c.vtx[h as usize], c.dest(h));
+            if c.pos[a as usize].distance(c.pos[b as usize]) >= lo {
+                continue;
+            }
+            for (x, y) in order(c, a, b) {
+                if ops::can_collapse(c, h, x, y, hi, sc) {
+                    ops::collapse(c, h, x, y, sc);
+                    n += 1;
+                    break;
+                }
+            }
+        }
+        total += n;
+        if n == 0 {
+            break;
+        }
+    }
+    total
+}
+
+/// Neighbour counts of every vertex.
+fn valences(c: &Corners) -> Vec<i32> {
+    let mut val = vec![0i32; c.pos.len()];
+    for h in 0..c.vtx.len() as u32 {
+        if c.face_dead[(h / 3) as usize] {
+            continue;
+        }
+        val[c.vtx[h as usize] as usize] += 1;
+        if c.is_border(h) {
+            val[c.dest(h) as usize] += 1;
+        }
+    }
+    val
+}
+
+fn target_valence(c: &Corners, v: u32) -> i32 {
+    if c.is_border_vertex(v) { 4 } else { 6 }
+}
+
+/// The four vertices of the flip of `h`: a, b (losing the edge), c, d (gaining it).
+fn quad(c: &Corners, h: u32) -> [u32; 4] {
+    let g = c.opp[h as usize];
+    [
+        c.vtx[h as usize],
+        c.dest(h),
+        c.vtx[prev(h) as usize],
+        c.vtx[prev(g) as usize],
+    ]
+}
+
+pub fn equalize_valences(c: &mut Corners, sc: &mut Scratch) -> usize {
+    let mut val = valences(c);
+    let mut n = 0;
+    for h in 0..c.vtx.len() as u32 {
+        if !canonical(c, h) || c.is_constrained(h) {
+            continue;
+        }
+        let q = quad(c, h);
+        let dev = |v: &[i32; 4]| -> i32 {
+            (0..4)
+                .map(|i| (v[i] - target_valence(c, q[i])).pow(2))
+                .sum()
+        };
+        let before = q.map(|v| val[v as usize]);
+        let after = [before[0] - 1, before[1] - 1, before[2] + 1, before[3] + 1];
+        if after[0] < 3 || after[1] < 3 || dev(&after) >= dev(&before) {
+            continue;
+        }
+        if ops::can_flip(c, h, sc) {
+            ops::flip(c, h);
+            for (i, v) in q.iter().enumerate() {
+                val[*v as usize] = after[i];
+            }
+            n += 1;
+        }
+    }
+    n
+}
+
+fn angle_at(p: DVec3, x: DVec3, y: DVec3) -> f64 {
+    (x - p).angle_between(y - p)
+}
+
+/// Flips an edge when the two angles opposite it sum to more than π (plus a margin, so a
+/// flip is never undone by the next): the flipped pair has a larger smallest angle.
+pub fn flip_angles(c: &mut Corners, sc: &mut Scratch) -> usize {
+    let val = valences(c);
+    let mut n = 0;
+    for h in 0..c.vtx.len() as u32 {
+        if !canonical(c, h) || c.is_constrained(h) {
+            continue;
+        }
+        let [a, b, cc, d] = quad(c, h).map(|v| v as usize);
+        if val[a] <= 3 || val[b] <= 3 {
+            continue;
+        }
+        let [pa, pb, pc, pd] = [a, b, cc, d].map(|v| c.pos[v]);
+        let opposite = angle_at(pc, pa, pb) + angle_at(pd, pa, pb);
+        if opposite > std::f64::consts::PI + 1e-3 && ops::can_flip(c, h, sc) {
+            ops::flip(c, h);
+            n += 1;
+        }
+    }
+    n
+}
+
+/// Tangential relaxation: a free vertex moves towards the area-weighted centroid of its
+/// faces within its tangent plane, a line vertex towards the middle of its two line
+/// neighbours along their chord. A move that would turn a face over is not made.
+pub fn relax(c: &mut Corners) {
+    let new: Vec<DVec3> = (0..c.pos.len() as u32)
+        .into_par_iter()
+        .map_init(Scratch::default, |sc, v| relaxed(c, v, sc))
+        .collect();
+    c.pos = new;
+}
+
+fn relaxed(c: &Corners, v: u32, sc: &mut Scratch) -> DVec3 {
+    let p = c.pos[v as usize];
+    if c.vertex_dead[v as usize] || c.locked[v as usize] {
+        return p;
+    }
+    let target = match c.kind[v as usize] {
+        VKind::Corner => return p,
+        VKind::Line => match ops::line_neighbours(c, v, sc) {
+            Some([x, y]) => {
+                let (px, py) = (c.pos[x as usize], c.pos[y as usize]);
+                let t = (py - px).normalize_or_zero();
+                p + t * t.dot(0.5 * (px + py) - p)
+            }
+            None => return p,
+        },
+        VKind::Free => {
+            let (centroid, normal) = ops::fan_centroid(c, v, sc);
+            let d = centroid - p;
+            p + d - normal * normal.dot(d)
+        }
+    };
+    if ops::fan_keeps_orientation(c, v, target, sc) {
+        target
+    } else {
+        p
+    }
+}
+
+/// Projection back onto the input: free vertices onto the closest point of the surface,
+/// line vertices onto their line. A projection that would turn a face over is not made.
+pub fn project(c: &mut Corners, lines: &Lines, bvh: &TriangleBvh) {
+    let new: Vec<(DVec3, u32, u32)> = (0..c.pos.len() as u32)
+        .into_par_iter()
+        .map_init(Scratch::default, |sc, v| projected(c, lines, bvh, v, sc))
+        .collect();
+    for (v, (p, seg, tri)) in new.into_iter().enumerate() {
+        c.pos[v] = p;
+        c.vseg[v] = seg;
+        c.vtri[v] = tri;
+    }
+}
+
+fn projected(
+    c: &Corners,
+    lines: &Lines,
+    bvh: &TriangleBvh,
+    v: u32,
+    sc: &mut Scratch,
+) -> (DVec3, u32, u32) {
+    let i = v as usize;
+    let (p, seg, tri) = (c.pos[i], c.vseg[i], c.vtri[i]);
+    if c.vertex_dead[i] || c.locked[i] {
+        return (p, seg, tri);
+    }
+    let (q, seg, tri) = match c.kind[i] {
+        VKind::Corner => return (p, seg, tri),
+        VKind::Line if seg != NIL => {
+            let (q, s) = lines.project(p, seg);
+            (q, s, tri)
+        }
+        VKind::Line => return (p, seg, tri),
+        VKind::Free => {
+            let start = bvh.hit_on(p, tri);
+            match bvh.closest(p, Some(start)) {
+                Some(hit) => (hit.point, seg, hit.triangle),
+                None => return (p, seg, tri),
+            }
+        }
+    };
+    if ops::fan_keeps_orientation(c, v, q, sc) {
+        (q, seg, tri)
+    } else {
+        (p, c.vseg[i], tri)
+    }
+}
+
+/// Runs `iterations` rounds towards edge length `l`.
+pub fn run(c: &mut Corners, lines: &Lines, bvh: &TriangleBvh, l: f64, iterations: usize) -> Counts {
+    let (lo, hi) = (0.8 * l, 4.0 / 3.0 * l);
+    let mut sc = Scratch::default();
+    let mut counts = Counts::default();
+    for _ in 0..iterations {
+        counts.splits += split_long(c, lines, hi);
+        counts.collapses += collapse_short(c, lo, hi, &mut sc);
+        counts.valence_flips += equalize_valences(c, &mut sc);
+        relax(c);
+        project(c, lines, bvh);
+        counts.angle_flips += flip_angles(c, &mut sc);
+    }
+    counts
+}

@@ -1,0 +1,206 @@
+//! Remeshing (issue #24, spec/remeshing.md): the recipe step `remesh`.
+//!
+//! `method = "isotropic"` ([`isotropic`], Botsch & Kobbelt 2004) replaces the triangles by
+//! nearly equilateral ones of a target edge length while keeping borders, texture seams,
+//! material changes and (optionally) sharp edges as lines, and carrying the texture: every
+//! corner's texture coordinate comes from the input, within its own chart ([`export`]).
+//! `method = "patches"` (the thesis' Bézier-patch remesher) is not built yet and is refused
+//! when the recipe is checked.
+
+pub mod build;
+pub mod corners;
+pub mod export;
+pub mod isotropic;
+pub mod lines;
+pub mod ops;
+pub mod quality;
+#[cfg(test)]
+mod tests;
+
+use crate::geom::bvh::TriangleBvh;
+use crate::mesh::Mesh;
+use crate::mesh::topology::Topology;
+use lines::{LineKind, Lines};
+use quality::AngleQuality;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Split, collapse, flip, relax, project (Botsch & Kobbelt 2004).
+    #[default]
+    Isotropic,
+    /// The thesis' Bézier-patch pipeline (spec §3): not implemented; refused by `validate`.
+    Patches,
+}
+
+/// Parameters of the `remesh` step. Exactly one of `edge_length`, `edge_fraction` and
+/// `target_faces` sets the target edge length L.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RemeshParams {
+    pub method: Method,
+    /// L in the mesh's units.
+    pub edge_length: Option<f64>,
+    /// L as a fraction of the bounding-box diagonal.
+    pub edge_fraction: Option<f64>,
+    /// L such that equilateral triangles of side L cover the input's area this many times.
+    pub target_faces: Option<usize>,
+    /// Split–collapse–flip–relax–project rounds.
+    pub iterations: usize,
+    /// Edges whose two faces' normals differ by more than this (degrees) are kept as lines;
+    /// none when absent (scans are noisy: a small angle turns noise into lines).
+    pub feature_angle: Option<f64>,
+}
+
+impl Default for RemeshParams {
+    fn default() -> Self {
+        RemeshParams {
+            method: Method::Isotropic,
+            edge_length: None,
+            edge_fraction: None,
+            target_faces: None,
+            iterations: DEFAULT_ITERATIONS,
+            feature_angle: None,
+        }
+    }
+}
+
+pub const DEFAULT_ITERATIONS: usize = 5;
+/// More rounds than this do not change the result measurably and only cost time.
+pub const MAX_ITERATIONS: usize = 100;
+/// A target length below this fraction of the diagonal would multiply a scan's triangles
+/// by more than the memory limits allow.
+pub const MIN_EDGE_FRACTION: f64 = 1e-4;
+
+impl RemeshParams {
+    pub fn validate(&self) -> Result<(), String> {
+        if self.method == Method::Patches {
+            return Err("method \"patches\" (the Bézier-patch remesher) is not available yet; use method = \"isotropic\"".into());
+        }
+        let given = [
+            self.edge_length.is_some(),
+            self.edge_fraction.is_some(),
+            self.target_faces.is_some(),
+        ];
+        if given.iter().filter(|&&g| g).count() != 1 {
+            return Err("give exactly one of edge_length, edge_fraction and target_faces".into());
+        }
+        if let Some(l) = self.edge_length
+            && !(l.is_finite() && l > 0.0)
+        {
+            return Err(format!("edge_length must be a positive number, not {l}"));
+        }
+        if let Some(f) = self.edge_fraction
+            && !(f.is_finite() && (MIN_EDGE_FRACTION..=1.0).contains(&f))
+        {
+            return Err(format!(
+                "edge_fraction must be in {MIN_EDGE_FRACTION}..=1 (of the bounding-box diagonal), not {f}"
+            ));
+        }
+        if self.target_faces == Some(0) {
+            return Err("target_faces must be at least 1".into());
+        }
+        if !(1..=MAX_ITERATIONS).contains(&self.iterations) {
+            return Err(format!(
+                "iterations must be in 1..={MAX_ITERATIONS}, not {}",
+                self.iterations
+            ));
+        }
+        if let Some(a) = self.feature_angle
+            && !(a.is_finite() && (0.0..=180.0).contains(&a))
+        {
+            return Err(format!("feature_angle must be in 0..=180 degrees, not {a}"));
+        }
+        Ok(())
+    }
+
+    /// The target edge length L for `mesh`.
+    pub fn target_length(&self, mesh: &Mesh) -> f64 {
+        let diag = mesh.bounding_box_diagonal();
+        if let Some(l) = self.edge_length {
+            return l.max(MIN_EDGE_FRACTION * diag);
+        }
+        if let Some(f) = self.edge_fraction {
+            return f * diag;
+        }
+        let faces = self.target_faces.unwrap_or(1).max(1) as f64;
+        let area: f64 = (0..mesh.triangles.len())
+            .map(|t| mesh.triangle_area(t))
+            .sum();
+        (4.0 * area / (3f64.sqrt() * faces))
+            .sqrt()
+            .max(MIN_EDGE_FRACTION * diag)
+    }
+}
+
+/// Input lines by kind (edges of the input).
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct LineCounts {
+    pub border: usize,
+    pub seam: usize,
+    pub material: usize,
+    pub feature: usize,
+    pub non_manifold: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RemeshReport {
+    pub method: Method,
+    pub edge_length: f64,
+    pub iterations: usize,
+    pub counts: isotropic::Counts,
+    pub lines: LineCounts,
+    /// Vertices never touched (non-manifold ones and the ends of non-manifold edges).
+    pub locked_vertices: usize,
+    pub quality_before: AngleQuality,
+    pub quality_after: AngleQuality,
+    pub seconds: f64,
+}
+
+/// Why a mesh cannot be remeshed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RemeshError {
+    #[error("the mesh has no triangles")]
+    Empty,
+    #[error("the mesh's bounding box has no extent")]
+    Flat,
+}
+
+/// Remeshes `mesh` (already validated parameters) into a new mesh.
+pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport), RemeshError> {
+    let start = Instant::now();
+    if mesh.triangles.is_empty() {
+        return Err(RemeshError::Empty);
+    }
+    if mesh.bounding_box_diagonal().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return Err(RemeshError::Flat);
+    }
+    let topo = Topology::new(mesh);
+    let lines = Lines::new(mesh, &topo, params.feature_angle);
+    let mut c = build::build(mesh, &topo, &lines);
+    let chart_of_input = c.chart.clone();
+    let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
+    let l = params.target_length(mesh);
+    let counts = isotropic::run(&mut c, &lines, &bvh, l, params.iterations);
+    let out = export::export(&c, &lines, mesh, &chart_of_input, &bvh);
+    let report = RemeshReport {
+        method: params.method,
+        edge_length: l,
+        iterations: params.iterations,
+        counts,
+        lines: LineCounts {
+            border: lines.count(LineKind::Border),
+            seam: lines.count(LineKind::Seam),
+            material: lines.count(LineKind::Material),
+            feature: lines.count(LineKind::Feature),
+            non_manifold: lines.count(LineKind::NonManifold),
+        },
+        locked_vertices: c.locked.iter().filter(|&&l| l).count(),
+        quality_before: AngleQuality::of(mesh),
+        quality_after: AngleQuality::of(&out),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((out, report))
+}
