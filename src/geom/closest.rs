@@ -10,7 +10,12 @@ use glam::DVec3;
 /// The one degenerate rule: when the interior case's denominator (twice the squared area,
 /// in effect) is zero, subnormal or not finite, the answer is corner `a` (weights `(1, 0, 0)`).
 /// Only a zero-area triangle whose edge regions all failed reaches it.
-#[inline]
+///
+/// Always inlined: it is the innermost call of every closest-point search (metrics, preview,
+/// fairing's projection), and a caller that wants only the point lets the compiler drop the
+/// weights. Left to its own judgement the compiler kept one shared out-of-line copy, which
+/// made the face-scan run measurably slower (docs/face-scan.md).
+#[inline(always)]
 pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DVec3) {
     let ab = b - a;
     let ac = c - a;
