@@ -70,9 +70,18 @@ impl Default for RemeshParams {
 pub const DEFAULT_ITERATIONS: usize = 5;
 /// More rounds than this do not change the result measurably and only cost time.
 pub const MAX_ITERATIONS: usize = 100;
-/// A target length below this fraction of the diagonal would multiply a scan's triangles
-/// by more than the memory limits allow.
+/// The shortest target length, as a fraction of the diagonal; a floor for `edge_length` and
+/// `target_faces`, which do not see the scan's size when the recipe is checked.
 pub const MIN_EDGE_FRACTION: f64 = 1e-4;
+/// The most triangles a remesh may make (about 4 GB of working mesh). The floor above still
+/// allows ~10⁸ triangles on a flat scan, so the expected count is checked before any work:
+/// a recipe asking for more fails with the figure instead of running the job out of memory.
+pub const MAX_OUTPUT_FACES: f64 = 10_000_000.0;
+
+/// Triangles of equilateral side `l` that cover `area` (the relation `target_faces` uses).
+fn faces_for(area: f64, l: f64) -> f64 {
+    4.0 * area / (3f64.sqrt() * l * l)
+}
 
 impl RemeshParams {
     pub fn validate(&self) -> Result<(), String> {
@@ -126,10 +135,7 @@ impl RemeshParams {
             return f * diag;
         }
         let faces = self.target_faces.unwrap_or(1).max(1) as f64;
-        let area: f64 = (0..mesh.triangles.len())
-            .map(|t| mesh.triangle_area(t))
-            .sum();
-        (4.0 * area / (3f64.sqrt() * faces))
+        (4.0 * surface_area(mesh) / (3f64.sqrt() * faces))
             .sqrt()
             .max(MIN_EDGE_FRACTION * diag)
     }
@@ -166,6 +172,21 @@ pub enum RemeshError {
     Empty,
     #[error("the mesh's bounding box has no extent")]
     Flat,
+    #[error(
+        "an edge length of {edge_length:.3e} would make about {expected:.0} triangles, more than \
+         the {limit:.0} a remesh may make; choose a longer edge_length or edge_fraction, or fewer target_faces"
+    )]
+    TooDense {
+        edge_length: f64,
+        expected: f64,
+        limit: f64,
+    },
+}
+
+fn surface_area(mesh: &Mesh) -> f64 {
+    (0..mesh.triangles.len())
+        .map(|t| mesh.triangle_area(t))
+        .sum()
 }
 
 /// Remeshes `mesh` (already validated parameters) into a new mesh.
@@ -177,12 +198,20 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
     if mesh.bounding_box_diagonal().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(RemeshError::Flat);
     }
+    let l = params.target_length(mesh);
+    let expected = faces_for(surface_area(mesh), l);
+    if expected.is_nan() || expected > MAX_OUTPUT_FACES {
+        return Err(RemeshError::TooDense {
+            edge_length: l,
+            expected,
+            limit: MAX_OUTPUT_FACES,
+        });
+    }
     let topo = Topology::new(mesh);
     let lines = Lines::new(mesh, &topo, params.feature_angle);
     let mut c = build::build(mesh, &topo, &lines);
     let chart_of_input = c.chart.clone();
     let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
-    let l = params.target_length(mesh);
     let counts = isotropic::run(&mut c, &lines, &bvh, l, params.iterations);
     let out = export::export(&c, &lines, mesh, &chart_of_input, &bvh);
     let report = RemeshReport {

@@ -97,6 +97,30 @@ fn deterministic_across_thread_counts() {
 }
 
 #[test]
+fn a_length_that_would_make_too_many_triangles_is_refused_before_any_work() {
+    let mesh = shapes::torus(1.0, 0.3, 40, 20);
+    let tiny = RemeshParams {
+        edge_length: Some(1e-9),
+        ..RemeshParams::default()
+    };
+    match remesh(&mesh, &tiny) {
+        Err(RemeshError::TooDense {
+            expected, limit, ..
+        }) => {
+            assert!(expected > limit, "{expected} {limit}");
+        }
+        other => panic!(
+            "expected TooDense, got {:?}",
+            other.map(|(m, _)| m.triangles.len())
+        ),
+    }
+    let e = remesh(&mesh, &tiny).unwrap_err().to_string();
+    assert!(e.contains("edge_length") && e.contains("triangles"), "{e}");
+    // The same torus at a sane length is remeshed.
+    assert!(remesh(&mesh, &fraction(0.03)).is_ok());
+}
+
+#[test]
 fn params_validate() {
     assert!(RemeshParams::default().validate().is_err());
     assert!(fraction(0.01).validate().is_ok());
