@@ -17,7 +17,8 @@ use noise_protocol::{SCANS, load, noisy, taubin, wanted};
 use scanmill::mesh::Mesh;
 use scanmill::metrics::distance::{surface_distance, vertex_distances};
 use scanmill::metrics::volume;
-use scanmill::ops::fair::{self, BoundaryMode, FairParams, RelaxParams, Schedule};
+use scanmill::ops::border::Border;
+use scanmill::ops::fair::{self, FairParams, RelaxParams, Schedule};
 use std::time::Instant;
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
@@ -133,8 +134,8 @@ fn main() {
         relax_params.max_iterations = x;
     }
     if env::<String>("FP_BOUNDARY").as_deref() == Some("fixed") {
-        params.boundary = BoundaryMode::Fixed;
-        relax_params.boundary = BoundaryMode::Fixed;
+        params.boundary = Border::Fixed;
+        relax_params.boundary = Border::Fixed;
     }
     let caps: Vec<u32> = env::<String>("FP_CAPS").map_or(vec![params.max_iterations], |s| {
         s.split(',').map(|x| x.trim().parse().unwrap()).collect()

@@ -13,7 +13,10 @@
 #     ../shared/data/textured/facefuns_di3d_face/example.obj /tmp/scans/face400k/face400k.obj \
 #     400000 0.1 ../shared/data/textured/facefuns_di3d_face/example.png
 # The baseline's outputs are kept in $SCANMILL_IDENTICAL_DIR (default /tmp/scanmill-identical),
-# keyed by the binary's hash, so that a series of checks runs the baseline once.
+# keyed by the binary's and the recipe's hash, so that a series of checks runs the baseline
+# once. When a change respells the recipe (the new spelling must mean the same, with the same
+# recipe hash), $SCANMILL_IDENTICAL_BASE_RECIPE names the recipe file the baseline reads, e.g.
+# `git show main:config/recipes/face-scan.toml > /tmp/face-scan-before.toml`.
 # Exits 0 when everything is identical, 1 with one line per difference otherwise.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,6 +25,7 @@ new_bin=$(realpath "${2:-target/release/scanmill}")
 face400k=${3:-/tmp/scans/face400k/face400k.obj}
 work=${SCANMILL_IDENTICAL_DIR:-/tmp/scanmill-identical}
 recipe=config/recipes/face-scan.toml
+base_recipe=${SCANMILL_IDENTICAL_BASE_RECIPE:-$recipe}
 data=../shared/data/textured
 
 # name|mesh|texture (the texture only where the OBJ names no material library; see
@@ -39,9 +43,9 @@ scans=(
     "face400k|$face400k|"
 )
 
-# run BINARY DIR: every scan into DIR/NAME/out with its report at DIR/NAME/report.json.
+# run BINARY RECIPE DIR: every scan into DIR/NAME/out with its report at DIR/NAME/report.json.
 run() {
-    local bin=$1 dir=$2 entry name mesh texture
+    local bin=$1 recipe=$2 dir=$3 entry name mesh texture
     for entry in "${scans[@]}"; do
         IFS='|' read -r name mesh texture <<< "$entry"
         [ -f "$mesh" ] || { echo "missing scan: $mesh" >&2; exit 2; }
@@ -54,13 +58,13 @@ run() {
     done
 }
 
-base_dir=$work/base-$(sha256sum "$base_bin" | cut -c1-16)
+base_dir=$work/base-$(cat "$base_bin" "$base_recipe" | sha256sum | cut -c1-16)
 if [ ! -f "$base_dir/.complete" ]; then
-    run "$base_bin" "$base_dir"
+    run "$base_bin" "$base_recipe" "$base_dir"
     touch "$base_dir/.complete"
 fi
 new_dir=$work/new
-run "$new_bin" "$new_dir"
+run "$new_bin" "$recipe" "$new_dir"
 
 python3 - "$base_dir" "$new_dir" "${scans[@]}" <<'PY'
 import filecmp, json, os, re, sys

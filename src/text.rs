@@ -91,6 +91,16 @@ pub fn bounded(text: &str, max: usize) -> String {
     out
 }
 
+/// The name serde gives a unit enum variant (its `rename_all` spelling): names shown in
+/// reports and messages are derived from the serde attributes once, not kept in tables
+/// beside them that could drift.
+pub fn serde_name<T: serde::Serialize>(value: &T) -> String {
+    match serde_json::to_value(value) {
+        Ok(serde_json::Value::String(name)) => name,
+        other => panic!("serde_name of a value that is not a unit variant: {other:?}"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -15,9 +15,7 @@ use scanmill::metrics::surface::{counterparts, sample_surface};
 use scanmill::metrics::topology::ReferenceTopology;
 use scanmill::ops::decimate::quadric::Weights;
 use scanmill::ops::decimate::work::{Config, Work};
-use scanmill::ops::decimate::{
-    BoundaryMode, Conditioning, DecimateParams, Fallback, Method, decimate,
-};
+use scanmill::ops::decimate::{Conditioning, DecimateParams, Fallback, Method, decimate};
 use std::path::Path;
 use std::process::Command;
 
@@ -183,7 +181,7 @@ fn scans_never_reach_the_budget() {
 /// The classification steps of the decimation set-up on a mesh.
 fn classify_steps(mesh: &Mesh) -> u64 {
     let cfg = Config {
-        boundary: BoundaryMode::Keep,
+        boundary: scanmill::ops::border::Border::Fixed,
         boundary_weight: 1.0,
         seam_weight: 1.0,
         conditioning: Conditioning::Reduced,

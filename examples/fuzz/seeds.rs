@@ -519,7 +519,7 @@ fn recipe_seeds() -> Vec<Seed> {
     for step in &steps {
         let text = toml_step(step);
         seeds.push(seed(
-            step.kind(),
+            &step.kind(),
             format!("[metrics]\nenabled = false\n\n{text}"),
         ));
         all += &text;

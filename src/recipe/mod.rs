@@ -36,7 +36,7 @@ pub enum RecipeError {
     Invalid {
         path: PathBuf,
         line: usize,
-        kind: &'static str,
+        kind: String,
         message: String,
     },
 }
@@ -224,16 +224,14 @@ pub enum Step {
 }
 
 impl Step {
-    pub fn kind(&self) -> &'static str {
-        match self {
-            Step::Crop(_) => "crop",
-            Step::Relax(_) => "relax",
-            Step::Fair(_) => "fair",
-            Step::Smooth(_) => "smooth",
-            Step::Decimate(_) => "decimate",
-            Step::Remesh(_) => "remesh",
-            Step::SeamFix(_) => "seam_fix",
-            Step::Normals(_) => "normals",
+    /// The recipe's `kind` of this step, from serde (the variant's snake_case name).
+    pub fn kind(&self) -> String {
+        match serde_json::to_value(self) {
+            Ok(serde_json::Value::Object(map)) => match map.get("kind") {
+                Some(serde_json::Value::String(kind)) => kind.clone(),
+                _ => unreachable!("a step serialises with its kind"),
+            },
+            _ => unreachable!("a step serialises as a table"),
         }
     }
 
@@ -303,7 +301,51 @@ struct RecipeFile {
     #[serde(default)]
     preview: PreviewOptions,
     #[serde(default)]
+    experimental: Experimental,
+    #[serde(default)]
     step: Vec<toml::Spanned<toml::Table>>,
+}
+
+/// The `[experimental]` table: research-only switches, one sub-table per step kind that has
+/// any. Not part of the resolved recipe itself: each switch is recorded in the steps it
+/// applies to (where it was before it moved here, so that hashes stayed the same).
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Experimental {
+    #[serde(default)]
+    decimate: crate::ops::decimate::Experimental,
+}
+
+impl Experimental {
+    /// The step with the switches that apply to it.
+    fn apply(&self, step: Step) -> Step {
+        match step {
+            Step::Decimate(p) => Step::Decimate(p.with_experimental(self.decimate)),
+            other => other,
+        }
+    }
+}
+
+/// A research-only key written in a step's own table: the line and the message saying
+/// where it moved.
+fn moved_to_experimental(
+    text: &str,
+    header_end: usize,
+    table: &toml::Table,
+) -> Option<(Option<usize>, String)> {
+    if table.get("kind").and_then(toml::Value::as_str) != Some("decimate") {
+        return None;
+    }
+    let keys = crate::ops::decimate::Experimental::keys();
+    let key = keys.iter().find(|k| table.contains_key(k.as_str()))?;
+    let line = line_in_table(text, header_end, |l| {
+        l.strip_prefix(key.as_str())
+            .is_some_and(|after| after.trim_start().starts_with('='))
+    });
+    Some((
+        line,
+        format!("`{key}` is research-only and moved to the recipe's [experimental.decimate] table"),
+    ))
 }
 
 /// The 1-based line of the first line of the table whose header ends at `header_end` that
@@ -464,12 +506,17 @@ impl Recipe {
                     ));
                 }
             }
+            let step_line = line;
+            if let Some((line, message)) = moved_to_experimental(text, spanned_range.end, &table) {
+                return Err(parse_error(line.unwrap_or(step_line), message));
+            }
             let step = Step::deserialize(toml::Value::Table(table)).map_err(|e| {
                 let message = e.message().to_string();
                 // Point at the offending key's line where the message names one.
                 let line = error_line(text, spanned_range.end, &message).unwrap_or(line);
                 parse_error(line, message)
             })?;
+            let step = file.experimental.apply(step);
             step.validate().map_err(|message| RecipeError::Invalid {
                 path: path.to_path_buf(),
                 line,
@@ -674,5 +721,160 @@ mod tests {
         assert!(e.contains("[preview]") && e.contains("size"), "{e}");
         let e = parse("[preview]\nsise = 8\n").unwrap_err().to_string();
         assert!(e.contains("supersample"), "{e}");
+    }
+
+    /// Recipes keep the hash they had before the boundary vocabulary and the
+    /// `[experimental]` table (the daemon's job key is built from it): the hashes below were
+    /// computed by the code before that change, each for the old spelling; the new spelling
+    /// must give the same.
+    #[test]
+    fn shipped_recipes_keep_their_hash() {
+        for (file, hash) in [
+            (
+                "face-scan",
+                "99ed35193967df4b411b86699ea146bfdf6228011aebfe4d522ecf217fe25c6a",
+            ),
+            (
+                "face-scan-denoise",
+                "949db8d733e5987c725feafe246b628c033049999a81e53dbed25e6502afffe9",
+            ),
+            (
+                "normals-only",
+                "77bef33a73fb8c219cf818cae20e07af5d7dc5f77bb495660a478f5a59d69a6a",
+            ),
+        ] {
+            let path = PathBuf::from(format!("config/recipes/{file}.toml"));
+            assert_eq!(Recipe::from_path(&path).unwrap().hash(), hash, "{file}");
+        }
+    }
+
+    /// The renamed spellings give the hashes the old ones had (computed by the code before
+    /// the rename, for the old spelling).
+    #[test]
+    fn renamed_spellings_keep_the_hash() {
+        let step = |kind: &str, rest: &str| format!("[[step]]\nkind = \"{kind}\"\n{rest}");
+        let smooth_curve = "5342e9c737c026fa4bd522a8cff465661b5ac94c78e98ca0080d858f670f7efb";
+        let decimate_free = "98d6a664e712fa193b62d49a504ef2e28ee5620e5a1664a13be44d24762b4d57";
+        let fixed_fairing = "acfe67c37878290113b53d3e255ee23738a925cc011e0a7e6fbb7fd21b626f91";
+        let relax_fair = |b: &str| step("relax", b) + &step("fair", b);
+        let experimental = "87262fdcd14afdd7c682e3a2f7d151cdea38be1b1ce4c67a09c31394b53a49b1";
+        for (text, hash) in [
+            (
+                step("smooth", "method = \"taubin\"\nboundary = \"free\"\n"),
+                smooth_curve,
+            ),
+            (
+                step("smooth", "method = \"taubin\"\nboundary = \"curve\"\n"),
+                smooth_curve,
+            ),
+            (
+                step("smooth", "method = \"laplace\"\n"),
+                "7e43546fbb8c12968d9c60b2e82d0710934e2592e5c9d02c2238a27a860565c5",
+            ),
+            (
+                step("smooth", "method = \"hc\"\n"),
+                "0b315dc7d9b4c84c19023535384a407c9b674e4fcad7c799873c601bbbd2e8bf",
+            ),
+            (
+                step(
+                    "smooth",
+                    "method = \"bilateral\"\nboundary = \"fixed\"\nunits = \"absolute\"\n",
+                ),
+                "d498582e0c2117629be0d73af8cdbf5f84e98027d7042d0af59190c323328a6b",
+            ),
+            (
+                step(
+                    "smooth",
+                    "method = \"normal-filter\"\nboundary = \"curve\"\n",
+                ),
+                "cde570d86c5a8e7b6ed8f34ce50f0503eb7c76c0627f13c36184bcc682f62f37",
+            ),
+            (
+                step("decimate", "target_faces = 1000\nboundary = \"free\"\n"),
+                decimate_free,
+            ),
+            (
+                step(
+                    "decimate",
+                    "target_faces = 1000\nboundary = \"like-interior\"\n",
+                ),
+                decimate_free,
+            ),
+            (
+                step("decimate", "target_faces = 1000\nboundary = \"weighted\"\n"),
+                "f49aff631dc0ba17dec2e5aae18ddafadf39d7282bf7c378faf3fe9e50f14098",
+            ),
+            (
+                "[experimental.decimate]\nconditioning = \"thesis-literal\"\nguards = false\n"
+                    .to_string()
+                    + &step(
+                        "decimate",
+                        "target_faces = 1000\nmethod = \"face-collapse\"\n",
+                    ),
+                experimental,
+            ),
+            (relax_fair("boundary = \"fixed\"\n"), fixed_fairing),
+        ] {
+            assert_eq!(parse(&text).unwrap().hash(), hash, "{text}");
+        }
+        // The new names mean what the old ones did.
+        assert_ne!(
+            parse(&relax_fair("boundary = \"curve\"\n")).unwrap().hash(),
+            fixed_fairing
+        );
+        let keep = parse(&step(
+            "decimate",
+            "target_faces = 1000\nboundary = \"keep\"\n",
+        ))
+        .unwrap();
+        let fixed = parse(&step(
+            "decimate",
+            "target_faces = 1000\nboundary = \"fixed\"\n",
+        ))
+        .unwrap();
+        assert_eq!(keep.hash(), fixed.hash());
+    }
+
+    #[test]
+    fn research_switches_are_refused_in_the_step_and_say_where_they_moved() {
+        for key in ["conditioning = \"thesis-literal\"", "guards = false"] {
+            let e = parse(&format!(
+                "[[step]]\nkind = \"decimate\"\ntarget_faces = 10\n{key}\n"
+            ))
+            .unwrap_err()
+            .to_string();
+            assert!(
+                e.contains("line 4") && e.contains("[experimental.decimate]"),
+                "{e}"
+            );
+        }
+        let r = parse("[experimental.decimate]\nguards = false\n[[step]]\nkind = \"decimate\"\ntarget_faces = 10\n").unwrap();
+        match &r.steps[0] {
+            Step::Decimate(p) => assert!(!p.guards),
+            other => panic!("{other:?}"),
+        }
+        let e = parse("[experimental.decimate]\nguard = false\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("guard") && e.contains("conditioning"), "{e}");
+    }
+
+    #[test]
+    fn a_border_mode_of_another_step_is_refused_with_this_steps_choices() {
+        let e =
+            parse("\n[[step]]\nkind = \"smooth\"\nmethod = \"taubin\"\nboundary = \"weighted\"\n")
+                .unwrap_err()
+                .to_string();
+        assert!(
+            e.contains("line 5") && e.contains("`curve` (or `free`)"),
+            "{e}"
+        );
+        let e = parse("[[step]]\nkind = \"fair\"\nboundary = \"keep\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("`curve` (or `fair`)") && e.contains("`fixed`"),
+            "{e}"
+        );
     }
 }

@@ -31,7 +31,7 @@ impl Progress for NoProgress {}
 pub struct StepError {
     /// 1-based position of the step in the recipe.
     pub index: usize,
-    pub kind: &'static str,
+    pub kind: String,
     pub message: String,
 }
 
@@ -292,12 +292,11 @@ fn run_one(
     let step = &recipe.steps[i];
     let next = recipe.steps.get(i + 1).map(Step::as_recipe_step);
     let before = recipe.step_metrics.contains(&(i + 1)).then(|| mesh.clone());
-    stages
-        .progress
-        .stage(stages.first + i, stages.total, step.kind());
+    let kind = step.kind();
+    stages.progress.stage(stages.first + i, stages.total, &kind);
     let (vertices_before, faces_before) = (mesh.positions.len(), mesh.triangles.len());
     let start = Instant::now();
-    let span = tracing::info_span!("step", index = i + 1, kind = step.kind());
+    let span = tracing::info_span!("step", index = i + 1, kind = kind.as_str());
     let _guard = span.enter();
     follow.begin(step.as_recipe_step(), mesh);
     let mut figures = step
@@ -305,7 +304,7 @@ fn run_one(
         .run(mesh, cx)
         .map_err(|message| StepError {
             index: i + 1,
-            kind: step.kind(),
+            kind: kind.clone(),
             message,
         })?;
     // Kept from one fairing step to the next only (`relax` then `fair`): no other step uses
@@ -315,13 +314,13 @@ fn run_one(
     }
     let run_goes_on = next.is_some_and(|s| s.moves_vertices());
     follow.end(mesh, run_goes_on && before.is_none(), &mut figures);
-    debug_assert!(mesh.check_invariants().is_ok(), "{}", step.kind());
+    debug_assert!(mesh.check_invariants().is_ok(), "{kind}");
     cx.changed = true;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     tracing::debug!(wall_ms, faces = mesh.triangles.len(), "step done");
     let metrics = before.map(|b| metrics_value(mesh, &b, &recipe.metrics.options()));
     Ok(StepReport {
-        kind: step.kind().to_string(),
+        kind,
         wall_ms,
         vertices_before,
         vertices_after: mesh.positions.len(),
@@ -396,7 +395,7 @@ mod tests {
         );
         let r = recipe("[[step]]\nkind = \"crop\"\nmin = [5, 5, 5]\nmax = [6, 6, 6]\n");
         let e = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap_err();
-        assert_eq!((e.index, e.kind), (1, "crop"));
+        assert_eq!((e.index, e.kind.as_str()), (1, "crop"));
         assert!(e.message.contains("removes every triangle"), "{e}");
     }
 }

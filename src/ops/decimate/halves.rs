@@ -6,7 +6,7 @@
 //!    The vertices used by both halves are the *cut*.
 //! 2. Each half is decimated as a mesh of its own (in parallel, `rayon::join`) to its half
 //!    of [`STAGE_FACTOR`] × the target. The cut is a border of each half, and
-//!    `boundary = "keep"` holds border vertices still, so the cut stays exactly as it was
+//!    `boundary = "fixed"` holds border vertices still, so the cut stays exactly as it was
 //!    (positions, wedges and their attributes).
 //! 3. The two results are stitched back together at the cut: its vertices are found by
 //!    their bit-identical positions, and their wedges by their identical attributes.
@@ -42,7 +42,7 @@ pub const AUTO_MIN_FACES: usize = 150_000;
 pub fn wanted(mesh: &Mesh, params: &DecimateParams) -> Option<usize> {
     let target = params.target_faces?;
     let applicable = params.method == super::Method::EdgeCollapse
-        && params.boundary == super::BoundaryMode::Keep
+        && params.boundary == crate::ops::border::Border::Fixed
         && params.max_error.is_none();
     let big_enough = mesh.triangles.len() as f64 > 2.0 * STAGE_FACTOR * target as f64;
     match params.halves {

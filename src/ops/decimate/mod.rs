@@ -21,6 +21,7 @@ pub mod quadric;
 pub mod work;
 
 use crate::mesh::Mesh;
+use crate::ops::border::{self, Border};
 use collapse_loop::{CollapseOperator, FaceCollapse};
 use edge_collapse::EdgeCollapse;
 use quadric::Weights;
@@ -46,28 +47,10 @@ pub enum Method {
 }
 
 impl Method {
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::FaceCollapse => "face-collapse",
-            Method::EdgeCollapse => "edge-collapse",
-            Method::Cluster => "cluster",
-            Method::ClusterKeep => "cluster-keep",
-        }
+    /// The name in a recipe, from serde.
+    pub fn name(self) -> String {
+        crate::text::serde_name(&self)
     }
-}
-
-/// What happens at mesh borders.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum BoundaryMode {
-    /// Border vertices never move and are never removed: every border loop is kept exactly.
-    #[default]
-    Keep,
-    /// Border vertices slide along their border, held by perpendicular border planes
-    /// weighted by `boundary_weight` (as MeshLab's `BoundaryWeight`).
-    Weighted,
-    /// Border vertices move like interior ones (topology guards still apply).
-    Free,
 }
 
 /// Whether edge collapse first decimates the two halves of the mesh on two cores
@@ -130,7 +113,10 @@ pub struct DecimateParams {
     /// Largest error a collapse may have, as a fraction of the bounding-box diagonal (RMS
     /// distance of the merged vertex from the planes it summarises).
     pub max_error: Option<f64>,
-    pub boundary: BoundaryMode,
+    /// `fixed` (recorded as `keep`), `weighted` or `like-interior` (recorded as `free`):
+    /// see [`Border`].
+    #[serde(with = "border::decimate")]
+    pub boundary: Border,
     /// Weight of the border planes with `boundary = "weighted"`.
     pub boundary_weight: f64,
     /// Weight of the planes that hold texture seams in place (through each seam edge,
@@ -151,6 +137,10 @@ pub struct DecimateParams {
     /// Use w = λ² (Hoppe's form, §3.7 default) rather than w = λ (§10.6).
     pub squared_weights: bool,
     pub priority: Priority,
+    /// Research only: set from the recipe's `[experimental.decimate]` table
+    /// ([`Experimental`]), never from the step's own table; recorded in the step's resolved
+    /// form as it always was, so that recipes keep their hash.
+    #[serde(skip_deserializing)]
     pub conditioning: Conditioning,
     /// Condition-number threshold (§10.8: 1e8 from the class text; the GUI said ≥ 1e10).
     pub max_condition: f64,
@@ -158,7 +148,8 @@ pub struct DecimateParams {
     /// Largest change (degrees) of a surviving triangle's normal in one collapse.
     pub max_normal_change: f64,
     /// Link condition, flip, texture-flip and degeneracy guards (§5.6 [D]); off is the
-    /// thesis-literal behaviour and loses the guarantees.
+    /// thesis-literal behaviour and loses the guarantees. Research only, as `conditioning`.
+    #[serde(skip_deserializing)]
     pub guards: bool,
     /// Edge collapse of a large scan: the two halves first, each on its own core, then the
     /// whole ([`halves`]; measured in docs/decimation.md: faster and at least as good).
@@ -171,7 +162,7 @@ impl Default for DecimateParams {
             method: Method::EdgeCollapse,
             target_faces: None,
             max_error: None,
-            boundary: BoundaryMode::Keep,
+            boundary: Border::Fixed,
             boundary_weight: 1.0,
             seam_weight: None,
             geometry_weight: 1.0,
@@ -189,8 +180,50 @@ impl Default for DecimateParams {
     }
 }
 
+/// The `[experimental.decimate]` table of a recipe: switches that reproduce the thesis as
+/// printed, for research; they lose guarantees the product relies on, so they are kept out
+/// of the step's own table. They apply to every `decimate` step of the recipe.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Experimental {
+    /// `thesis-literal`: the condition number of the full matrix, as printed (§10.9).
+    pub conditioning: Conditioning,
+    /// `false`: no link, flip, texture-flip or degeneracy guards.
+    pub guards: bool,
+}
+
+impl Default for Experimental {
+    fn default() -> Self {
+        Experimental {
+            conditioning: Conditioning::Reduced,
+            guards: true,
+        }
+    }
+}
+
+impl Experimental {
+    /// The keys of this table, from serde; in a `decimate` step's own table they are an
+    /// error that says where they moved.
+    pub fn keys() -> Vec<String> {
+        match serde_json::to_value(Experimental::default()) {
+            Ok(serde_json::Value::Object(map)) => map.into_iter().map(|(k, _)| k).collect(),
+            _ => unreachable!("a struct serialises as a map"),
+        }
+    }
+}
+
 impl DecimateParams {
+    /// The research switches of the recipe's `[experimental.decimate]` table.
+    pub fn with_experimental(self, e: Experimental) -> DecimateParams {
+        DecimateParams {
+            conditioning: e.conditioning,
+            guards: e.guards,
+            ..self
+        }
+    }
+
     pub fn validate(&self) -> Result<(), String> {
+        border::DECIMATE.check(self.boundary)?;
         if self.target_faces.is_none() && self.max_error.is_none() {
             return Err("give target_faces, max_error or both".into());
         }
@@ -221,12 +254,12 @@ impl DecimateParams {
         }
         if self.halves == Halves::On
             && (self.method != Method::EdgeCollapse
-                || self.boundary != BoundaryMode::Keep
+                || self.boundary != Border::Fixed
                 || self.target_faces.is_none()
                 || self.max_error.is_some())
         {
             return Err(
-                "halves = \"on\" needs method = \"edge-collapse\", boundary = \"keep\", a target_faces and no max_error"
+                "halves = \"on\" needs method = \"edge-collapse\", boundary = \"fixed\", a target_faces and no max_error"
                     .into(),
             );
         }
@@ -462,7 +495,7 @@ pub fn decimate_with_origin(
         (None, false, true) => run::<3>(mesh, params, origin),
         (None, false, false) => run::<0>(mesh, params, origin),
     };
-    report.method = params.method.name().to_string();
+    report.method = params.method.name();
     report.faces_before = mesh.triangles.len();
     report.vertices_before = mesh.positions.len();
     report.faces_after = out.triangles.len();

@@ -192,7 +192,7 @@ fn max_error_alone_stops_early() {
 fn boundary_modes() {
     let m = bumpy_grid(30);
     let before = counts(&m);
-    for mode in [BoundaryMode::Weighted, BoundaryMode::Free] {
+    for mode in [Border::Weighted, Border::LikeInterior] {
         let p = DecimateParams {
             boundary: mode,
             ..params(Method::FaceCollapse, 300)
@@ -205,7 +205,7 @@ fn boundary_modes() {
             "{mode:?} decimates the border"
         );
         assert_eq!(c.non_manifold_edges, 0);
-        if mode == BoundaryMode::Weighted {
+        if mode == Border::Weighted {
             // Border vertices slide along the border: they stay on the square's sides.
             let topo = Topology::new(&out);
             for e in topo.boundary_edges() {

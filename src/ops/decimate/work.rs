@@ -15,8 +15,9 @@ use super::quadric::{
     AttrPart, Quadric, Reduced, WedgeAttrs, WedgeQuadrics, Weights, cross, dense_condition_number,
     dot, sub,
 };
-use super::{BoundaryMode, Conditioning, Fallback, Refusal};
+use super::{Conditioning, Fallback, Refusal};
 use crate::mesh::{Index, Mesh, Wedge};
+use crate::ops::border::Border;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
@@ -175,7 +176,7 @@ fn bits(n: usize) -> usize {
 /// Settings of the merge machinery, resolved from the step parameters.
 #[derive(Debug, Clone, Copy)]
 pub struct Config {
-    pub boundary: BoundaryMode,
+    pub boundary: Border,
     pub boundary_weight: f64,
     pub seam_weight: f64,
     pub conditioning: Conditioning,
@@ -484,7 +485,7 @@ impl<'a, const M: usize> Work<'a, M> {
         for (v, info) in infos.into_iter().enumerate() {
             self.classify_steps += info.steps;
             let class = match (info.class, self.cfg.boundary) {
-                (VClass::Border, BoundaryMode::Keep) => VClass::Fixed,
+                (VClass::Border, Border::Fixed) => VClass::Fixed,
                 (c, _) => c,
             };
             self.class[v] = class;
@@ -631,7 +632,7 @@ impl<'a, const M: usize> Work<'a, M> {
     #[inline]
     fn border_edge(&self, v: usize, x: u32, t: usize, edges: &mut StarEdges) {
         edges.border += 1;
-        if self.cfg.boundary == BoundaryMode::Weighted {
+        if self.cfg.boundary == Border::Weighted {
             let w = self.cfg.boundary_weight;
             edges.planes.extend(self.edge_plane(v, x, t, w));
         }
@@ -689,7 +690,7 @@ impl<'a, const M: usize> Work<'a, M> {
     #[inline]
     fn placement_class(&self, v: u32) -> VClass {
         match (self.class[v as usize], self.cfg.boundary) {
-            (VClass::Border, BoundaryMode::Free) => VClass::Interior,
+            (VClass::Border, Border::LikeInterior) => VClass::Interior,
             (c, _) => c,
         }
     }

@@ -27,6 +27,7 @@ pub mod schedule;
 pub mod surface;
 
 use crate::mesh::{BoundaryChain, Mesh, Topology};
+use crate::ops::border::{self, Border};
 use glam::DVec3;
 use guards::{FixedCounts, GuardCounts};
 use neighbourhood::Neighbourhood;
@@ -49,137 +50,145 @@ pub enum Schedule {
     Fast,
 }
 
-/// What happens at the boundary loops of a surface with boundary.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum BoundaryMode {
-    /// Fair every loop with the curve algorithm first (ch. 4).
-    #[default]
-    Fair,
-    /// Hold the boundary still.
-    Fixed,
-}
-
-/// Parameters of the `fair` step. Names follow the thesis' symbols (§2.10, §4.5, App. B):
-/// unprefixed = the surface (interior, `S_*`), `c_` = the boundary curves (`C_*`).
-/// `stop` and `epsilon` are relative to the mean edge length of the input.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct FairParams {
-    /// λ, curvature diffusion (3.21). Thesis recommendation 0.01 (§3.8.5).
-    pub lambda: f64,
-    /// λ_u, non-uniformity decay (3.18). 0.01 (§3.8.5).
-    pub lambda_u: f64,
-    /// T_h: curvature iterations per cycle. 50 (§3.8.4).
-    pub t_h: u32,
-    /// T_u: non-uniformity iterations per cycle. 50.
-    pub t_u: u32,
-    /// I: the most interior iterations, both criteria counted.
-    pub max_iterations: u32,
-    /// S: stop when an iteration's mean displacement < `stop` × mean edge length. 1e-5.
-    pub stop: f64,
-    /// Matlab `S_end_way`: `any` phase may stop the run, or only `curvature` phases.
-    pub stop_in: StopIn,
-    pub boundary: BoundaryMode,
-    /// C_λ: boundary curvature diffusion (2.15). 0.1 (§2.11.5, §4.6).
-    pub c_lambda: f64,
-    /// C_λu: boundary non-uniformity decay. 0.01.
-    pub c_lambda_u: f64,
-    pub c_t_h: u32,
-    pub c_t_u: u32,
-    /// C_maxIter.
-    pub c_max_iterations: u32,
-    /// C_sum: 1e-4 × the loop's mean edge length.
-    pub c_stop: f64,
-    /// Zero tolerance for curvature magnitudes, × 1/(mean edge length). 1e-4 (App. A/B).
-    pub epsilon: f64,
-    /// Degrees: vertices on sharper edges stay fixed. None = no crease protection (the
-    /// thesis rounds sharp edges off, §1.2.2).
-    pub feature_angle: Option<f64>,
-    /// Vertices of higher valence stay fixed (vase, §3.8.1). None = 2.5 × median, ≥ 12.
-    pub max_valence: Option<u32>,
-    pub schedule: Schedule,
-}
-
-impl Default for FairParams {
-    fn default() -> Self {
-        let s = PhaseParams::surface();
-        let c = PhaseParams::curve();
-        FairParams {
-            lambda: s.lambda,
-            lambda_u: s.lambda_u,
-            t_h: s.t_h,
-            t_u: s.t_u,
-            // The thesis ran 5000–10000 iterations on its extremely noisy reconstructions
-            // (§3.8, §4.6.3); full convergence is not wanted (§2.2) and the cap sets how much
-            // is faired: the displacement stop S never fires on noisy scans before shape is
-            // lost (curvature-magnitude diffusion keeps moving vertices while H is not yet
-            // harmonic). 500 is where the distance to the clean scan is least on the noise
-            // protocol's scans (docs/fairing.md, "Measurements behind rules in the code");
-            // the thesis' 5000 stays reachable.
-            max_iterations: 500,
-            stop: s.stop,
-            stop_in: StopIn::Any,
-            boundary: BoundaryMode::Fair,
-            c_lambda: c.lambda,
-            c_lambda_u: c.lambda_u,
-            c_t_h: c.t_h,
-            c_t_u: c.t_u,
-            // The thesis ran boundary curves to the threshold. Borders are as smooth after
-            // 200 iterations as after 10000 (docs/fairing.md), while later iterations only
-            // grind against the guards and change hole areas more.
-            c_max_iterations: 200,
-            c_stop: c.stop,
-            epsilon: 1e-4,
-            feature_angle: None,
-            max_valence: None,
-            schedule: Schedule::Fast,
+/// Declares the parameters of a fairing step (`relax`, `fair`): the step's own fields, then
+/// the block both steps share (the boundary curves, the guards, the schedule), written once
+/// here with its documentation and defaults. The struct stays flat, as the recipe's table
+/// is: serde's `flatten` would let a shared struct be embedded, but a flattened struct
+/// cannot refuse unknown keys (`deny_unknown_fields`), and a typo must stay an error that
+/// names the valid keys. `c_max_iterations` is the one shared default that differs.
+macro_rules! fairing_params {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident {
+            $( $(#[$field_meta:meta])* pub $field:ident: $ty:ty = $default:expr, )*
         }
-    }
-}
-
-/// Parameters of the `relax` step: the non-uniformity criterion alone on the interior,
-/// the thesis' pre-pass for badly triangulated scans (§4.6.3, pass 1: 50 iterations,
-/// `S_λu = 0.1`, boundary `C_λ = 0.1`, `C_λu = 0.01`, `C_maxIter = 50`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct RelaxParams {
-    pub lambda_u: f64,
-    pub max_iterations: u32,
-    pub stop: f64,
-    pub boundary: BoundaryMode,
-    pub c_lambda: f64,
-    pub c_lambda_u: f64,
-    pub c_t_h: u32,
-    pub c_t_u: u32,
-    pub c_max_iterations: u32,
-    pub c_stop: f64,
-    pub epsilon: f64,
-    pub feature_angle: Option<f64>,
-    pub max_valence: Option<u32>,
-    pub schedule: Schedule,
-}
-
-impl Default for RelaxParams {
-    fn default() -> Self {
-        let c = PhaseParams::curve();
-        RelaxParams {
-            lambda_u: 0.1,
-            max_iterations: 50,
-            stop: 1e-5,
-            boundary: BoundaryMode::Fair,
-            c_lambda: c.lambda,
-            c_lambda_u: c.lambda_u,
-            c_t_h: c.t_h,
-            c_t_u: c.t_u,
-            c_max_iterations: 50,
-            c_stop: c.stop,
-            epsilon: 1e-4,
-            feature_angle: None,
-            max_valence: None,
-            schedule: Schedule::Fast,
+        c_max_iterations = $c_max_iterations:expr;
+    ) => {
+        $(#[$meta])*
+        #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+        #[serde(deny_unknown_fields, default)]
+        pub struct $name {
+            $( $(#[$field_meta])* pub $field: $ty, )*
+            /// What happens at the border loops: `curve` (recorded as `fair`: every loop is
+            /// faired with the curve algorithm first, ch. 4) or `fixed` (held still); see
+            /// [`Border`].
+            #[serde(with = "border::fairing")]
+            pub boundary: Border,
+            /// C_λ: boundary curvature diffusion (2.15). 0.1 (§2.11.5, §4.6).
+            pub c_lambda: f64,
+            /// C_λu: boundary non-uniformity decay. 0.01.
+            pub c_lambda_u: f64,
+            pub c_t_h: u32,
+            pub c_t_u: u32,
+            /// C_maxIter.
+            pub c_max_iterations: u32,
+            /// C_sum: 1e-4 × the loop's mean edge length.
+            pub c_stop: f64,
+            /// Zero tolerance for curvature magnitudes, × 1/(mean edge length). 1e-4 (App.
+            /// A/B).
+            pub epsilon: f64,
+            /// Degrees: vertices on sharper edges stay fixed. None = no crease protection
+            /// (the thesis rounds sharp edges off, §1.2.2).
+            pub feature_angle: Option<f64>,
+            /// Vertices of higher valence stay fixed (vase, §3.8.1). None = 2.5 × median,
+            /// ≥ 12.
+            pub max_valence: Option<u32>,
+            pub schedule: Schedule,
         }
+
+        impl Default for $name {
+            fn default() -> Self {
+                let c = PhaseParams::curve();
+                $name {
+                    $( $field: $default, )*
+                    boundary: Border::Curve,
+                    c_lambda: c.lambda,
+                    c_lambda_u: c.lambda_u,
+                    c_t_h: c.t_h,
+                    c_t_u: c.t_u,
+                    c_max_iterations: $c_max_iterations,
+                    c_stop: c.stop,
+                    epsilon: 1e-4,
+                    feature_angle: None,
+                    max_valence: None,
+                    schedule: Schedule::Fast,
+                }
+            }
+        }
+
+        impl $name {
+            /// The plan: the step's interior phase (`surface`) with the shared block.
+            fn plan_with(&self, surface: PhaseParams, tangential: bool) -> Plan {
+                Plan {
+                    surface,
+                    curve: PhaseParams {
+                        lambda: self.c_lambda,
+                        lambda_u: self.c_lambda_u,
+                        t_h: self.c_t_h,
+                        t_u: self.c_t_u,
+                        max_iterations: self.c_max_iterations,
+                        stop: self.c_stop,
+                        stop_in: StopIn::Any,
+                    },
+                    boundary: self.boundary,
+                    epsilon: self.epsilon,
+                    feature_angle: self.feature_angle,
+                    max_valence: self.max_valence,
+                    schedule: self.schedule,
+                    tangential,
+                }
+            }
+
+            pub fn validate(&self) -> Result<(), String> {
+                self.plan().validate()
+            }
+        }
+    };
+}
+
+fairing_params! {
+    /// Parameters of the `fair` step. Names follow the thesis' symbols (§2.10, §4.5, App. B):
+    /// unprefixed = the surface (interior, `S_*`), `c_` = the boundary curves (`C_*`).
+    /// `stop` and `epsilon` are relative to the mean edge length of the input.
+    pub struct FairParams {
+        /// λ, curvature diffusion (3.21). Thesis recommendation 0.01 (§3.8.5).
+        pub lambda: f64 = PhaseParams::surface().lambda,
+        /// λ_u, non-uniformity decay (3.18). 0.01 (§3.8.5).
+        pub lambda_u: f64 = PhaseParams::surface().lambda_u,
+        /// T_h: curvature iterations per cycle. 50 (§3.8.4).
+        pub t_h: u32 = PhaseParams::surface().t_h,
+        /// T_u: non-uniformity iterations per cycle. 50.
+        pub t_u: u32 = PhaseParams::surface().t_u,
+        /// I: the most interior iterations, both criteria counted. The thesis ran 5000–10000
+        /// iterations on its extremely noisy reconstructions (§3.8, §4.6.3); full
+        /// convergence is not wanted (§2.2) and the cap sets how much is faired: the
+        /// displacement stop S never fires on noisy scans before shape is lost
+        /// (curvature-magnitude diffusion keeps moving vertices while H is not yet
+        /// harmonic). 500 is where the distance to the clean scan is least on the noise
+        /// protocol's scans (docs/fairing.md, "Measurements behind rules in the code"); the
+        /// thesis' 5000 stays reachable.
+        pub max_iterations: u32 = 500,
+        /// S: stop when an iteration's mean displacement < `stop` × mean edge length. 1e-5.
+        pub stop: f64 = PhaseParams::surface().stop,
+        /// Matlab `S_end_way`: `any` phase may stop the run, or only `curvature` phases.
+        pub stop_in: StopIn = StopIn::Any,
     }
+    // The thesis ran boundary curves to the threshold. Borders are as smooth after 200
+    // iterations as after 10000 (docs/fairing.md), while later iterations only grind against
+    // the guards and change hole areas more.
+    c_max_iterations = 200;
+}
+
+fairing_params! {
+    /// Parameters of the `relax` step: the non-uniformity criterion alone on the interior,
+    /// the thesis' pre-pass for badly triangulated scans (§4.6.3, pass 1: 50 iterations,
+    /// `S_λu = 0.1`, boundary `C_λ = 0.1`, `C_λu = 0.01`, `C_maxIter = 50`).
+    pub struct RelaxParams {
+        pub lambda_u: f64 = 0.1,
+        pub max_iterations: u32 = 50,
+        pub stop: f64 = 1e-5,
+    }
+    c_max_iterations = 50;
 }
 
 /// Everything a run needs, whichever step asked.
@@ -187,7 +196,7 @@ impl Default for RelaxParams {
 pub struct Plan {
     pub surface: PhaseParams,
     pub curve: PhaseParams,
-    pub boundary: BoundaryMode,
+    pub boundary: Border,
     pub epsilon: f64,
     pub feature_angle: Option<f64>,
     pub max_valence: Option<u32>,
@@ -215,6 +224,7 @@ fn check_step(name: &str, x: f64) -> Result<(), String> {
 
 impl Plan {
     pub fn validate(&self) -> Result<(), String> {
+        border::FAIRING.check(self.boundary)?;
         check_step("lambda", self.surface.lambda)?;
         check_step("lambda_u", self.surface.lambda_u)?;
         check_step("c_lambda", self.curve.lambda)?;
@@ -244,75 +254,35 @@ impl Plan {
 
 impl FairParams {
     pub fn plan(&self) -> Plan {
-        Plan {
-            surface: PhaseParams {
-                lambda: self.lambda,
-                lambda_u: self.lambda_u,
-                t_h: self.t_h,
-                t_u: self.t_u,
-                max_iterations: self.max_iterations,
-                stop: self.stop,
-                stop_in: self.stop_in,
-            },
-            curve: PhaseParams {
-                lambda: self.c_lambda,
-                lambda_u: self.c_lambda_u,
-                t_h: self.c_t_h,
-                t_u: self.c_t_u,
-                max_iterations: self.c_max_iterations,
-                stop: self.c_stop,
-                stop_in: StopIn::Any,
-            },
-            boundary: self.boundary,
-            epsilon: self.epsilon,
-            feature_angle: self.feature_angle,
-            max_valence: self.max_valence,
-            schedule: self.schedule,
-            tangential: false,
-        }
-    }
-
-    pub fn validate(&self) -> Result<(), String> {
-        self.plan().validate()
+        let surface = PhaseParams {
+            lambda: self.lambda,
+            lambda_u: self.lambda_u,
+            t_h: self.t_h,
+            t_u: self.t_u,
+            max_iterations: self.max_iterations,
+            stop: self.stop,
+            stop_in: self.stop_in,
+        };
+        self.plan_with(surface, false)
     }
 }
 
 impl RelaxParams {
     pub fn plan(&self) -> Plan {
-        Plan {
-            // Only the non-uniformity criterion: T_h = 0 rather than λ = 0, which would
-            // still move vertices beyond the curvature maximum (fairing.md pitfall 13).
-            surface: PhaseParams {
-                lambda: 0.0,
-                lambda_u: self.lambda_u,
-                t_h: 0,
-                // One phase for the whole run (a length of 1 would keep the fast
-                // schedule from scaling time).
-                t_u: self.max_iterations.max(1),
-                max_iterations: self.max_iterations,
-                stop: self.stop,
-                stop_in: StopIn::Any,
-            },
-            curve: PhaseParams {
-                lambda: self.c_lambda,
-                lambda_u: self.c_lambda_u,
-                t_h: self.c_t_h,
-                t_u: self.c_t_u,
-                max_iterations: self.c_max_iterations,
-                stop: self.c_stop,
-                stop_in: StopIn::Any,
-            },
-            boundary: self.boundary,
-            epsilon: self.epsilon,
-            feature_angle: self.feature_angle,
-            max_valence: self.max_valence,
-            schedule: self.schedule,
-            tangential: true,
-        }
-    }
-
-    pub fn validate(&self) -> Result<(), String> {
-        self.plan().validate()
+        // Only the non-uniformity criterion: T_h = 0 rather than λ = 0, which would still
+        // move vertices beyond the curvature maximum (fairing.md pitfall 13).
+        let surface = PhaseParams {
+            lambda: 0.0,
+            lambda_u: self.lambda_u,
+            t_h: 0,
+            // One phase for the whole run (a length of 1 would keep the fast schedule from
+            // scaling time).
+            t_u: self.max_iterations.max(1),
+            max_iterations: self.max_iterations,
+            stop: self.stop,
+            stop_in: StopIn::Any,
+        };
+        self.plan_with(surface, true)
     }
 }
 
@@ -556,7 +526,7 @@ impl Sweep<'_> {
     ) -> usize {
         let (nb, plan, fixed) = (self.nb, self.plan, self.fixed);
         let (curves, held) = boundary::boundary_curves(chains, fixed);
-        let boundary_fair = plan.boundary == BoundaryMode::Fair
+        let boundary_fair = plan.boundary == Border::Curve
             && plan.curve.max_iterations > 0
             && plan.curve.t_h + plan.curve.t_u > 0;
         if !boundary_fair {
@@ -727,7 +697,7 @@ mod tests {
             panic!("not fair")
         };
         assert_eq!((p.t_h, p.t_u, p.max_iterations), (30, 70, 500));
-        assert_eq!(p.boundary, BoundaryMode::Fixed);
+        assert_eq!(p.boundary, Border::Fixed);
         assert_eq!(p.schedule, Schedule::Thesis);
         assert_eq!(p.feature_angle, Some(60.0));
     }

@@ -5,7 +5,7 @@
 //! an empty row means "this vertex does not move" (isolated, or a fixed border vertex);
 //! a free border vertex's row holds only its neighbours along border edges.
 
-use super::{Boundary, CHUNK, Weights};
+use super::{Border, CHUNK, Weights};
 use crate::mesh::topology::Topology;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -49,7 +49,7 @@ pub struct SmoothGraph {
 
 impl SmoothGraph {
     /// Builds the rows. `cotangent` also records each edge's opposite vertices.
-    pub fn new(topology: &Topology, boundary: Boundary, cotangent: bool) -> SmoothGraph {
+    pub fn new(topology: &Topology, boundary: Border, cotangent: bool) -> SmoothGraph {
         let n = topology.vertex_count();
         let mut offsets = Vec::with_capacity(n + 1);
         let mut neighbours = Vec::with_capacity(topology.edge_count() * 2);
@@ -64,7 +64,7 @@ impl SmoothGraph {
             let on_border = topology.is_boundary_vertex(v);
             if ring.is_empty() {
                 isolated += 1;
-            } else if on_border && boundary == Boundary::Fixed {
+            } else if on_border && boundary == Border::Fixed {
                 fixed_boundary += 1;
             } else if on_border {
                 for &u in ring {

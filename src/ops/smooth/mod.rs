@@ -44,21 +44,14 @@ pub enum Update {
     InPlace,
 }
 
-/// What happens to vertices on an open border (spec pitfall 9; the thesis' models are closed).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum Boundary {
-    /// Border vertices do not move. The default: a scan's border is usually a cut (the
-    /// crop step, the edge of the scanner's view) whose outline should stay where it is,
-    /// and the umbrella operator would otherwise pull every border inward.
-    #[default]
-    Fixed,
-    /// Border vertices are smoothed along the border only: their Laplacian averages their
-    /// neighbours along border edges (as MeshLab/VCG does), so the border curve is denoised
-    /// without being pulled into the surface. The bilateral filter moves them along their
-    /// normal like every other vertex.
-    Free,
-}
+/// What happens to vertices on an open border (spec pitfall 9; the thesis' models are
+/// closed): `fixed`, the default (a scan's border is usually a cut, the crop step or the edge
+/// of the scanner's view, whose outline should stay where it is, and the umbrella operator
+/// would otherwise pull every border inward), or `curve` (recorded as `free`: border
+/// vertices average their neighbours along border edges only, as MeshLab/VCG does, so the
+/// border curve is denoised without being pulled into the surface; the bilateral filter
+/// moves them along their normal like every other vertex). See [`Border`].
+pub use crate::ops::border::Border;
 
 /// Edge weights of the discrete Laplacian (Eq. 3.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -175,14 +168,19 @@ pub enum SmoothMethod {
 }
 
 impl SmoothMethod {
-    pub fn name(&self) -> &'static str {
+    pub fn method_name(&self) -> MethodName {
         match self {
-            SmoothMethod::Laplace(_) => "laplace",
-            SmoothMethod::Hc(_) => "hc",
-            SmoothMethod::Taubin(_) => "taubin",
-            SmoothMethod::Bilateral(_) => "bilateral",
-            SmoothMethod::NormalFilter(_) => "normal-filter",
+            SmoothMethod::Laplace(_) => MethodName::Laplace,
+            SmoothMethod::Hc(_) => MethodName::Hc,
+            SmoothMethod::Taubin(_) => MethodName::Taubin,
+            SmoothMethod::Bilateral(_) => MethodName::Bilateral,
+            SmoothMethod::NormalFilter(_) => MethodName::NormalFilter,
         }
+    }
+
+    /// The name in a recipe, from serde.
+    pub fn name(&self) -> String {
+        self.method_name().name()
     }
 }
 
@@ -195,7 +193,7 @@ pub struct SmoothParams {
     pub method: SmoothMethod,
     pub iterations: u32,
     pub update: Update,
-    pub boundary: Boundary,
+    pub boundary: Border,
 }
 
 /// The method names a recipe may use.
@@ -209,6 +207,13 @@ pub enum MethodName {
     NormalFilter,
 }
 
+impl MethodName {
+    /// The name in a recipe, from serde.
+    pub fn name(self) -> String {
+        crate::text::serde_name(&self)
+    }
+}
+
 /// The recipe form of [`SmoothParams`]: flat, every parameter optional.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -218,8 +223,12 @@ pub struct SmoothParamsFile {
     pub iterations: Option<u32>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub update: Option<Update>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub boundary: Option<Boundary>,
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        with = "crate::ops::border::smooth_option"
+    )]
+    pub boundary: Option<Border>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lambda: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -266,33 +275,20 @@ pub const MAX_ITERATIONS: u32 = 10_000;
 /// mean edge 0.064 needs about 10 rings).
 pub const MAX_RINGS: u32 = 12;
 
+/// The keys every method takes besides its own parameters.
+const COMMON_KEYS: [&str; 4] = ["method", "iterations", "update", "boundary"];
+
 impl SmoothParamsFile {
-    /// Names of the parameters that are set.
-    fn set_names(&self) -> Vec<&'static str> {
-        let mut names = Vec::new();
-        let mut push = |set: bool, name| {
-            if set {
-                names.push(name)
-            }
+    /// Names of the method parameters that are set, from serde (unset ones are not
+    /// serialised).
+    fn set_names(&self) -> Vec<String> {
+        let Ok(serde_json::Value::Object(map)) = serde_json::to_value(self) else {
+            unreachable!("a struct serialises as a map")
         };
-        push(self.lambda.is_some(), "lambda");
-        push(self.mu.is_some(), "mu");
-        push(self.alpha.is_some(), "alpha");
-        push(self.beta.is_some(), "beta");
-        push(self.sigma_c.is_some(), "sigma_c");
-        push(self.sigma_s.is_some(), "sigma_s");
-        push(self.radius.is_some(), "radius");
-        push(self.rings.is_some(), "rings");
-        push(self.units.is_some(), "units");
-        push(self.weights.is_some(), "weights");
-        push(self.anchor.is_some(), "anchor");
-        push(self.count.is_some(), "count");
-        push(self.variant.is_some(), "variant");
-        push(self.strength.is_some(), "strength");
-        push(self.sigma_r.is_some(), "sigma_r");
-        push(self.normal_passes.is_some(), "normal_passes");
-        push(self.vertex_passes.is_some(), "vertex_passes");
-        names
+        map.into_iter()
+            .filter(|(key, value)| !value.is_null() && !COMMON_KEYS.contains(&key.as_str()))
+            .map(|(key, _)| key)
+            .collect()
     }
 }
 
@@ -306,18 +302,185 @@ fn own_parameters(method: MethodName) -> &'static [&'static str] {
     }
 }
 
-fn method_str(method: MethodName) -> &'static str {
-    match method {
-        MethodName::Laplace => "laplace",
-        MethodName::Hc => "hc",
-        MethodName::Taubin => "taubin",
-        MethodName::Bilateral => "bilateral",
-        MethodName::NormalFilter => "normal-filter",
+fn check(ok: bool, message: impl FnOnce() -> String) -> Result<(), String> {
+    if ok { Ok(()) } else { Err(message()) }
+}
+
+/// Table A.2's Laplace: λ = 0.08 (22 iterations).
+impl Default for LaplaceParams {
+    fn default() -> Self {
+        LaplaceParams {
+            lambda: 0.08,
+            anchor: LaplaceAnchor::Current,
+            weights: Weights::Uniform,
+        }
     }
 }
 
-fn check(ok: bool, message: impl FnOnce() -> String) -> Result<(), String> {
-    if ok { Ok(()) } else { Err(message()) }
+/// Table A.2's Laplace-HC: λ = 1.0, α = 0.001, β = 0.5 (8 iterations).
+impl Default for HcParams {
+    fn default() -> Self {
+        HcParams {
+            lambda: 1.0,
+            alpha: 0.001,
+            beta: 0.5,
+            weights: Weights::Uniform,
+        }
+    }
+}
+
+/// Table A.2's Taubin: λ = 0.53, μ = −0.54 (13 iterations).
+impl Default for TaubinParams {
+    fn default() -> Self {
+        TaubinParams {
+            lambda: 0.53,
+            mu: -0.54,
+            count: TaubinCount::Pairs,
+            weights: Weights::Uniform,
+        }
+    }
+}
+
+impl BilateralParams {
+    /// Table A.2's bunny values (3 iterations) in `units`: σ_c = 0.02, σ_s = 0.01 as
+    /// absolute lengths, σ_c = 0.9, σ_s = 0.45 in mean edges (see the type's note).
+    pub fn defaults_in(units: LengthUnits) -> BilateralParams {
+        let (sigma_c, sigma_s) = match units {
+            LengthUnits::MeanEdge => (0.9, 0.45),
+            LengthUnits::Absolute => (0.02, 0.01),
+        };
+        BilateralParams {
+            sigma_c,
+            sigma_s,
+            radius: None,
+            rings: 3,
+            units,
+        }
+    }
+}
+
+fn positive(name: &str, v: f64) -> Result<(), String> {
+    check(v.is_finite() && v > 0.0, || {
+        format!("`{name}` must be a positive length, got {v}")
+    })
+}
+
+/// `v` in (0, 1] (`open_low`) or [0, 1].
+fn unit_interval(name: &str, v: f64, open_low: bool) -> Result<(), String> {
+    let ok = v.is_finite() && v <= 1.0 && if open_low { v > 0.0 } else { v >= 0.0 };
+    check(ok, || {
+        let range = if open_low { "(0, 1]" } else { "[0, 1]" };
+        format!("`{name}` must be in {range}, got {v}")
+    })
+}
+
+impl LaplaceParams {
+    /// Table A.2's iteration count.
+    const ITERATIONS: u32 = 22;
+
+    /// The method's parameters from the recipe, defaults filled in and checked, with its
+    /// default iteration count.
+    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
+        let d = LaplaceParams::default();
+        let p = LaplaceParams {
+            lambda: f.lambda.unwrap_or(d.lambda),
+            anchor: f.anchor.unwrap_or(d.anchor),
+            weights: f.weights.unwrap_or(d.weights),
+        };
+        // §3.2 states λ ∈ (0,1) but uses λ = 1 itself (Eq. 3.4, HC): accept (0,1] (pitfall 3).
+        unit_interval("lambda", p.lambda, true)?;
+        Ok((SmoothMethod::Laplace(p), Self::ITERATIONS))
+    }
+}
+
+impl HcParams {
+    /// Table A.2's iteration count.
+    const ITERATIONS: u32 = 8;
+
+    /// The method's parameters from the recipe, defaults filled in and checked, with its
+    /// default iteration count.
+    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
+        let d = HcParams::default();
+        let p = HcParams {
+            lambda: f.lambda.unwrap_or(d.lambda),
+            alpha: f.alpha.unwrap_or(d.alpha),
+            beta: f.beta.unwrap_or(d.beta),
+            weights: f.weights.unwrap_or(d.weights),
+        };
+        unit_interval("lambda", p.lambda, true)?;
+        unit_interval("alpha", p.alpha, false)?;
+        unit_interval("beta", p.beta, false)?;
+        Ok((SmoothMethod::Hc(p), Self::ITERATIONS))
+    }
+}
+
+impl TaubinParams {
+    /// Table A.2's iteration count.
+    const ITERATIONS: u32 = 13;
+
+    /// The method's parameters from the recipe, defaults filled in and checked, with its
+    /// default iteration count.
+    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
+        let d = TaubinParams::default();
+        let p = TaubinParams {
+            lambda: f.lambda.unwrap_or(d.lambda),
+            mu: f.mu.unwrap_or(d.mu),
+            count: f.count.unwrap_or(d.count),
+            weights: f.weights.unwrap_or(d.weights),
+        };
+        // §3.4: 0 < λ < −μ. λ ≤ 1 keeps the shrinking pass a convex blend.
+        unit_interval("lambda", p.lambda, true)?;
+        check(p.mu.is_finite() && p.mu < -p.lambda, || {
+            format!(
+                "`mu` must be negative with |mu| > lambda (0 < lambda < -mu), got lambda = {}, mu = {}",
+                p.lambda, p.mu
+            )
+        })?;
+        Ok((SmoothMethod::Taubin(p), Self::ITERATIONS))
+    }
+}
+
+impl BilateralParams {
+    /// Table A.2's iteration count.
+    const ITERATIONS: u32 = 3;
+
+    /// The method's parameters from the recipe, defaults filled in and checked, with its
+    /// default iteration count.
+    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
+        let d = BilateralParams::defaults_in(f.units.unwrap_or_default());
+        let p = BilateralParams {
+            sigma_c: f.sigma_c.unwrap_or(d.sigma_c),
+            sigma_s: f.sigma_s.unwrap_or(d.sigma_s),
+            radius: f.radius.or(d.radius),
+            rings: f.rings.unwrap_or(d.rings),
+            units: d.units,
+        };
+        check((1..=MAX_RINGS).contains(&p.rings), || {
+            format!("`rings` must be in 1..={MAX_RINGS}, got {}", p.rings)
+        })?;
+        positive("sigma_c", p.sigma_c)?;
+        positive("sigma_s", p.sigma_s)?;
+        if let Some(r) = p.radius {
+            positive("radius", r)?;
+        }
+        Ok((SmoothMethod::Bilateral(p), Self::ITERATIONS))
+    }
+}
+
+/// Refuses `update = "in-place"` for the methods that need every vertex computed from one
+/// snapshot.
+fn check_update(method: MethodName, update: Update) -> Result<(), String> {
+    if update != Update::InPlace {
+        return Ok(());
+    }
+    match method {
+        // Pitfall 1: HC needs b of all neighbours, so its three steps must each finish for
+        // every vertex before the next starts.
+        MethodName::Hc => Err("method = \"hc\" needs update = \"buffered\" (its three steps each read the previous step's results for all neighbours; spec pitfall 1)".into()),
+        // Fleishman et al. compute every vertex from one snapshot (spec §6.2).
+        MethodName::Bilateral | MethodName::NormalFilter => Err("method = \"bilateral\" needs update = \"buffered\" (Fleishman et al. denoise every vertex from one snapshot, with normals of that snapshot)".into()),
+        MethodName::Laplace | MethodName::Taubin => Ok(()),
+    }
 }
 
 impl TryFrom<SmoothParamsFile> for SmoothParams {
@@ -328,91 +491,22 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
             "missing `method`; expected one of `laplace`, `hc`, `taubin`, `bilateral`, `normal-filter`".to_string()
         })?;
         let own = own_parameters(method);
-        if let Some(stray) = f.set_names().into_iter().find(|n| !own.contains(n)) {
+        if let Some(stray) = f
+            .set_names()
+            .into_iter()
+            .find(|n| !own.contains(&n.as_str()))
+        {
             return Err(format!(
                 "`{stray}` does not apply to method = \"{}\" (its parameters: {}, iterations, update, boundary)",
-                method_str(method),
+                method.name(),
                 own.join(", ")
             ));
         }
-        let positive = |name: &str, v: f64| {
-            check(v.is_finite() && v > 0.0, || {
-                format!("`{name}` must be a positive length, got {v}")
-            })
-        };
-        let unit_interval = |name: &str, v: f64, open_low: bool| {
-            let ok = v.is_finite() && v <= 1.0 && if open_low { v > 0.0 } else { v >= 0.0 };
-            check(ok, || {
-                let range = if open_low { "(0, 1]" } else { "[0, 1]" };
-                format!("`{name}` must be in {range}, got {v}")
-            })
-        };
-        let weights = f.weights.unwrap_or_default();
         let (smooth_method, default_iterations) = match method {
-            MethodName::Laplace => {
-                // §3.2 states λ ∈ (0,1) but uses λ = 1 itself (Eq. 3.4, HC): accept (0,1]
-                // (pitfall 3).
-                let lambda = f.lambda.unwrap_or(0.08);
-                unit_interval("lambda", lambda, true)?;
-                let p = LaplaceParams {
-                    lambda,
-                    anchor: f.anchor.unwrap_or_default(),
-                    weights,
-                };
-                (SmoothMethod::Laplace(p), 22)
-            }
-            MethodName::Hc => {
-                let p = HcParams {
-                    lambda: f.lambda.unwrap_or(1.0),
-                    alpha: f.alpha.unwrap_or(0.001),
-                    beta: f.beta.unwrap_or(0.5),
-                    weights,
-                };
-                unit_interval("lambda", p.lambda, true)?;
-                unit_interval("alpha", p.alpha, false)?;
-                unit_interval("beta", p.beta, false)?;
-                (SmoothMethod::Hc(p), 8)
-            }
-            MethodName::Taubin => {
-                let p = TaubinParams {
-                    lambda: f.lambda.unwrap_or(0.53),
-                    mu: f.mu.unwrap_or(-0.54),
-                    count: f.count.unwrap_or_default(),
-                    weights,
-                };
-                // §3.4: 0 < λ < −μ. λ ≤ 1 keeps the shrinking pass a convex blend.
-                unit_interval("lambda", p.lambda, true)?;
-                check(p.mu.is_finite() && p.mu < -p.lambda, || {
-                    format!(
-                        "`mu` must be negative with |mu| > lambda (0 < lambda < -mu), got lambda = {}, mu = {}",
-                        p.lambda, p.mu
-                    )
-                })?;
-                (SmoothMethod::Taubin(p), 13)
-            }
-            MethodName::Bilateral => {
-                let units = f.units.unwrap_or_default();
-                let (c, s) = match units {
-                    LengthUnits::MeanEdge => (0.9, 0.45),
-                    LengthUnits::Absolute => (0.02, 0.01),
-                };
-                let p = BilateralParams {
-                    sigma_c: f.sigma_c.unwrap_or(c),
-                    sigma_s: f.sigma_s.unwrap_or(s),
-                    radius: f.radius,
-                    rings: f.rings.unwrap_or(3),
-                    units,
-                };
-                check((1..=MAX_RINGS).contains(&p.rings), || {
-                    format!("`rings` must be in 1..={MAX_RINGS}, got {}", p.rings)
-                })?;
-                positive("sigma_c", p.sigma_c)?;
-                positive("sigma_s", p.sigma_s)?;
-                if let Some(r) = p.radius {
-                    positive("radius", r)?;
-                }
-                (SmoothMethod::Bilateral(p), 3)
-            }
+            MethodName::Laplace => LaplaceParams::resolve(&f)?,
+            MethodName::Hc => HcParams::resolve(&f)?,
+            MethodName::Taubin => TaubinParams::resolve(&f)?,
+            MethodName::Bilateral => BilateralParams::resolve(&f)?,
             MethodName::NormalFilter => {
                 let (p, iterations) = normal_filter::resolve(&f)?;
                 (SmoothMethod::NormalFilter(p), iterations)
@@ -423,25 +517,12 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
             format!("`iterations` must be in 1..={MAX_ITERATIONS}, got {iterations}")
         })?;
         let update = f.update.unwrap_or_default();
-        if update == Update::InPlace {
-            match method {
-                // Pitfall 1: HC needs b of all neighbours, so its three steps must each
-                // finish for every vertex before the next starts.
-                MethodName::Hc => {
-                    return Err("method = \"hc\" needs update = \"buffered\" (its three steps each read the previous step's results for all neighbours; spec pitfall 1)".into());
-                }
-                // Fleishman et al. compute every vertex from one snapshot (spec §6.2).
-                MethodName::Bilateral | MethodName::NormalFilter => {
-                    return Err("method = \"bilateral\" needs update = \"buffered\" (Fleishman et al. denoise every vertex from one snapshot, with normals of that snapshot)".into());
-                }
-                _ => {}
-            }
-        }
+        check_update(method, update)?;
         Ok(SmoothParams {
             method: smooth_method,
             iterations,
             update,
-            boundary: f.boundary.unwrap_or_default(),
+            boundary: f.boundary.unwrap_or(Border::Fixed),
         })
     }
 }
@@ -511,7 +592,7 @@ impl SmoothParams {
 /// What the step did (the step's figures in the report).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SmoothReport {
-    pub method: &'static str,
+    pub method: String,
     pub iterations: u32,
     /// Vertex passes applied (Taubin pairs count two, HC's correction is part of its pass).
     pub passes: u32,

@@ -99,7 +99,7 @@ fn defaults_are_table_a2() {
     let b = SmoothParams::defaults(MethodName::Bilateral);
     assert_eq!(b.iterations, 3);
     assert_eq!(b.update, Update::Buffered);
-    assert_eq!(b.boundary, Boundary::Fixed);
+    assert_eq!(b.boundary, Border::Fixed);
     let abs = parse("method = \"bilateral\"\nunits = \"absolute\"\n").unwrap();
     assert!(
         matches!(abs.method, SmoothMethod::Bilateral(p) if p.sigma_c == 0.02 && p.sigma_s == 0.01)
@@ -156,7 +156,7 @@ fn recipe_step_parses() {
 #[test]
 fn plane_stays_a_plane() {
     for method in ALL {
-        for boundary in [Boundary::Fixed, Boundary::Free] {
+        for boundary in [Border::Fixed, Border::Curve] {
             for weights in [Weights::Uniform, Weights::Cotangent] {
                 if method == MethodName::Bilateral && weights == Weights::Cotangent {
                     continue;
@@ -323,7 +323,7 @@ fn in_place_smooths_and_differs_from_buffered() {
 fn fixed_border_does_not_move_free_border_is_not_pulled_in() {
     let original = noisy_grid();
     for method in ALL {
-        for boundary in [Boundary::Fixed, Boundary::Free] {
+        for boundary in [Border::Fixed, Border::Curve] {
             let mut m = original.clone();
             let r = smooth(&mut m, &with(method, |f| f.boundary = Some(boundary)));
             let border = |p: DVec3| p.x < 0.5 || p.x > 19.5 || p.y < 0.5 || p.y > 19.5;
@@ -332,16 +332,17 @@ fn fixed_border_does_not_move_free_border_is_not_pulled_in() {
                     continue;
                 }
                 match boundary {
-                    Boundary::Fixed => assert_eq!(a, b),
-                    // Free border vertices average only their border neighbours, which lie
+                    Border::Fixed => assert_eq!(a, b),
+                    // Curve border vertices average only their border neighbours, which lie
                     // in z = 0 (the noise is on the interior): they stay in the plane, not
                     // pulled towards the noisy interior. (The bilateral filter moves them
                     // along their normal instead.)
-                    Boundary::Free if method == MethodName::Bilateral => {}
-                    Boundary::Free => assert!(b.z.abs() < 1e-12, "{method:?}: {a} → {b}"),
+                    Border::Curve if method == MethodName::Bilateral => {}
+                    Border::Curve => assert!(b.z.abs() < 1e-12, "{method:?}: {a} → {b}"),
+                    other => unreachable!("{other:?} is not a smooth mode"),
                 }
             }
-            let expected_fixed = if boundary == Boundary::Fixed { 80 } else { 0 };
+            let expected_fixed = if boundary == Border::Fixed { 80 } else { 0 };
             assert_eq!(r.fixed_boundary_vertices, expected_fixed);
         }
     }
@@ -391,7 +392,7 @@ fn degenerate_input_does_not_panic() {
     let mut m = grid(1, 1);
     m.positions.push(DVec3::new(5.0, 5.0, 5.0));
     for method in ALL {
-        for boundary in [Boundary::Fixed, Boundary::Free] {
+        for boundary in [Border::Fixed, Border::Curve] {
             let mut s = m.clone();
             let r = smooth(&mut s, &with(method, |f| f.boundary = Some(boundary)));
             assert_eq!(r.isolated_vertices, 1);

@@ -1,5 +1,5 @@
 use super::super::tests::{noise, noisy_grid, noisy_sphere, signed_volume};
-use super::super::{Boundary, MethodName, SmoothMethod, SmoothParams, SmoothParamsFile, smooth};
+use super::super::{Border, MethodName, SmoothMethod, SmoothParams, SmoothParamsFile, smooth};
 use super::NormalVariant;
 use crate::mesh::Mesh;
 use crate::mesh::shapes::uv_sphere;
@@ -47,7 +47,7 @@ fn flipped(before: &Mesh, after: &Mesh) -> usize {
 fn defaults_and_strength() {
     let p = SmoothParams::defaults(MethodName::NormalFilter);
     assert_eq!(p.iterations, 4);
-    assert_eq!(p.boundary, Boundary::Fixed);
+    assert_eq!(p.boundary, Border::Fixed);
     let SmoothMethod::NormalFilter(n) = p.method else {
         panic!("{p:?}")
     };
@@ -137,7 +137,7 @@ fn borders_as_the_other_methods() {
         m
     };
     let on_border = |p: &glam::DVec3| p.x < 0.5 || p.x > 19.5 || p.y < 0.5 || p.y > 19.5;
-    for boundary in [Boundary::Fixed, Boundary::Free] {
+    for boundary in [Border::Fixed, Border::Curve] {
         let mut m = noisy.clone();
         let report = smooth(&mut m, &params(|f| f.boundary = Some(boundary)));
         let moved_border = noisy
@@ -147,11 +147,12 @@ fn borders_as_the_other_methods() {
             .filter(|(a, b)| on_border(a) && a != b)
             .count();
         match boundary {
-            Boundary::Fixed => {
+            Border::Fixed => {
                 assert_eq!(moved_border, 0);
                 assert_eq!(report.fixed_boundary_vertices, 80);
             }
-            Boundary::Free => assert!(moved_border > 40, "{moved_border}"),
+            Border::Curve => assert!(moved_border > 40, "{moved_border}"),
+            other => unreachable!("{other:?} is not a smooth mode"),
         }
         let rms = |m: &Mesh| {
             let inner: Vec<f64> = m
