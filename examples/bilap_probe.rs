@@ -18,11 +18,26 @@
 mod noise_protocol;
 
 use glam::DVec3;
-use noise_protocol::{SCANS, load, noisy, taubin, umbrella, wanted};
+use noise_protocol::{SCANS, load, noisy, taubin, wanted};
 use scanmill::mesh::{Mesh, Topology};
 use scanmill::metrics::distance::surface_distance;
+use scanmill::ops::smooth::TaubinCount;
 
 const SAMPLES: usize = 100_000;
+/// Umbrella operator `(L x)_v = mean of the neighbours − x_v`, every vertex with
+/// neighbours.
+pub fn umbrella(topo: &Topology, x: &[DVec3]) -> Vec<DVec3> {
+    (0..x.len())
+        .map(|v| {
+            let nb = topo.vertex_neighbours(v as u32);
+            if nb.is_empty() {
+                return DVec3::ZERO;
+            }
+            nb.iter().map(|&j| x[j as usize]).sum::<DVec3>() / nb.len() as f64 - x[v]
+        })
+        .collect()
+}
+
 /// Explicit step of the bi-Laplacian flow: stable below 1/8 for the umbrella operator's
 /// spectrum in [−2, 0].
 const STEP: f64 = 0.1;
@@ -77,9 +92,9 @@ fn main() {
         let dist = |m: &Mesh| surface_distance(m, &clean, SAMPLES, 7).unwrap().mean;
         let dn = dist(&noisy);
         let mut t13 = noisy.clone();
-        taubin(&mut t13, 0.53, -0.54, 13);
+        taubin(&mut t13, 13, TaubinCount::Passes);
         let mut t26 = noisy.clone();
-        taubin(&mut t26, 0.53, -0.54, 26);
+        taubin(&mut t26, 13, TaubinCount::Pairs);
         let (d13, d26) = (dist(&t13), dist(&t26));
         println!(
             "{name}: Taubin 13 passes {:.3} of noisy, 13 pairs {:.3} of noisy",

@@ -13,9 +13,9 @@
 
 use clap::Parser;
 use glam::{DVec2, DVec3};
-use scanmill::geom::closest_on_triangle;
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
+use scanmill::metrics::{MetricsOptions, distance, surface};
 use scanmill::ops::decimate::{self, DecimateParams, Method};
 use scanmill::ops::subdivide::subdivide;
 use std::path::PathBuf;
@@ -44,14 +44,14 @@ struct Args {
     out: Option<PathBuf>,
     #[arg(long, default_value_t = 1)]
     repeat: usize,
-    /// Sampled distance and texture-coordinate deviation against the input (a stand-in
-    /// until `metrics::compare` lands on main).
+    /// The product's metrics against the input, and the texture-coordinate deviation.
     #[arg(long)]
     quality: bool,
     /// Run `seam_fix` after decimating.
     #[arg(long)]
     seam_fix: bool,
-    /// Texture image for the colour deviation when the mesh names none (pizza, facefuns).
+    /// Texture image when the mesh names none (pizza, facefuns): loaded as `scanmill process
+    /// --texture` does, so the colour deviation is measured.
     #[arg(long)]
     texture: Option<PathBuf>,
     /// Renumber the input for locality first, as `scanmill process` does before a
@@ -60,115 +60,8 @@ struct Args {
     renumber: bool,
 }
 
-/// An RGB image for bilinear lookups at OBJ texture coordinates (origin bottom left,
-/// coordinates wrap), as the metrics module defines texture deviation.
-struct Image(image::RgbImage);
-
-impl Image {
-    fn at(&self, uv: DVec2) -> [f64; 3] {
-        let (w, h) = (self.0.width() as f64, self.0.height() as f64);
-        let x = uv.x.rem_euclid(1.0) * w - 0.5;
-        let y = (1.0 - uv.y.rem_euclid(1.0)) * h - 0.5;
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let px = |i: f64, j: f64| {
-            let i = (i as i64).rem_euclid(self.0.width() as i64) as u32;
-            let j = (j as i64).clamp(0, self.0.height() as i64 - 1) as u32;
-            self.0.get_pixel(i, j).0.map(f64::from)
-        };
-        let (a, b, c, d) = (
-            px(x0, y0),
-            px(x0 + 1.0, y0),
-            px(x0, y0 + 1.0),
-            px(x0 + 1.0, y0 + 1.0),
-        );
-        std::array::from_fn(|k| {
-            (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy
-        })
-    }
-}
-
-/// Uniform grid over the input's triangles for closest-point queries.
-struct Grid<'a> {
-    mesh: &'a Mesh,
-    lo: DVec3,
-    cell: f64,
-    n: [i64; 3],
-    cells: std::collections::HashMap<[i64; 3], Vec<u32>>,
-}
-
-impl<'a> Grid<'a> {
-    fn new(mesh: &'a Mesh) -> Self {
-        let (lo, hi) = mesh.bounding_box().unwrap();
-        let cell = mesh.mean_edge_length() * 2.0;
-        let n = ((hi - lo) / cell)
-            .ceil()
-            .as_i64vec3()
-            .to_array()
-            .map(|x| x.max(1));
-        let mut cells: std::collections::HashMap<[i64; 3], Vec<u32>> = Default::default();
-        for t in 0..mesh.triangles.len() {
-            let p = mesh.triangle_positions(t);
-            let a = ((p[0].min(p[1]).min(p[2]) - lo) / cell)
-                .floor()
-                .as_i64vec3();
-            let b = ((p[0].max(p[1]).max(p[2]) - lo) / cell)
-                .floor()
-                .as_i64vec3();
-            for i in a.x..=b.x {
-                for j in a.y..=b.y {
-                    for k in a.z..=b.z {
-                        cells.entry([i, j, k]).or_default().push(t as u32);
-                    }
-                }
-            }
-        }
-        Grid {
-            mesh,
-            lo,
-            cell,
-            n,
-            cells,
-        }
-    }
-
-    /// (distance, triangle, barycentric) of the closest input point.
-    fn closest(&self, p: DVec3) -> (f64, usize, DVec3) {
-        let c = ((p - self.lo) / self.cell).floor().as_i64vec3();
-        let mut best = (f64::INFINITY, 0usize, DVec3::ZERO);
-        let max_r = self.n.iter().copied().max().unwrap_or(1) + 1;
-        for r in 0..=max_r {
-            for i in c.x - r..=c.x + r {
-                for j in c.y - r..=c.y + r {
-                    for k in c.z - r..=c.z + r {
-                        let on_shell =
-                            (i - c.x).abs() == r || (j - c.y).abs() == r || (k - c.z).abs() == r;
-                        if !on_shell {
-                            continue;
-                        }
-                        if let Some(list) = self.cells.get(&[i, j, k]) {
-                            for &t in list {
-                                let q = self.mesh.triangle_positions(t as usize);
-                                let (x, bary) = closest_on_triangle(p, q[0], q[1], q[2]);
-                                let d = x.distance(p);
-                                if d < best.0 {
-                                    best = (d, t as usize, bary);
-                                }
-                            }
-                        }
-                    }
-                }
-            }
-            if best.0 <= r as f64 * self.cell {
-                break;
-            }
-        }
-        best
-    }
-}
-
-fn uv_at(mesh: &Mesh, t: usize, bary: DVec3) -> Option<DVec2> {
-    let w = mesh.triangles[t];
+fn uv_at(mesh: &Mesh, t: u32, bary: DVec3) -> Option<DVec2> {
+    let w = mesh.triangles[t as usize];
     Some(
         mesh.wedge_texcoord(w[0])? * bary.x
             + mesh.wedge_texcoord(w[1])? * bary.y
@@ -176,125 +69,63 @@ fn uv_at(mesh: &Mesh, t: usize, bary: DVec3) -> Option<DVec2> {
     )
 }
 
-/// Mean / RMS / max one-sided distance (result → input) in % of the box diagonal, and
-/// mean / RMS texture-coordinate deviation (result's texture coordinate at a sample against
-/// the input's at the closest input point), from 100,000 area-weighted samples.
-fn quality(input: &Mesh, out: &Mesh, image: Option<&Image>) -> serde_json::Value {
-    use rayon::prelude::*;
-    let grid = Grid::new(input);
-    let areas: Vec<f64> = (0..out.triangles.len())
-        .map(|t| out.triangle_area(t))
-        .collect();
-    let total: f64 = areas.iter().sum();
-    let samples = 100_000usize;
-    let mut pts = Vec::with_capacity(samples);
-    let mut seed = 0x9E3779B97F4A7C15u64;
-    let mut rnd = || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let mut acc = 0.0;
-    let mut t = 0;
-    for i in 0..samples {
-        let target = (i as f64 + rnd()) / samples as f64 * total;
-        while t + 1 < areas.len() && acc + areas[t] < target {
-            acc += areas[t];
-            t += 1;
-        }
-        let (mut u, mut v) = (rnd(), rnd());
-        if u + v > 1.0 {
-            (u, v) = (1.0 - u, 1.0 - v);
-        }
-        pts.push((t, DVec3::new(1.0 - u - v, u, v)));
-    }
-    let res: Vec<(f64, Option<f64>, Option<f64>)> = pts
-        .par_iter()
-        .map(|&(t, b)| {
-            let q = out.triangle_positions(t);
-            let p = q[0] * b.x + q[1] * b.y + q[2] * b.z;
-            let (d, ti, bi) = grid.closest(p);
-            let (ua, ub) = (uv_at(out, t, b), uv_at(input, ti, bi));
-            let uv = match (ua, ub) {
-                (Some(a), Some(c)) => Some(a.distance(c)),
-                _ => None,
-            };
-            let colour = match (ua, ub, image) {
-                (Some(a), Some(c), Some(img)) => {
-                    let (x, y) = (img.at(a), img.at(c));
-                    Some(((0..3).map(|k| (x[k] - y[k]).powi(2)).sum::<f64>() / 3.0).sqrt())
-                }
-                _ => None,
-            };
-            (d, uv, colour)
-        })
-        .collect();
-    let diag = input.bounding_box_diagonal();
-    let n = res.len() as f64;
-    let mean = res.iter().map(|r| r.0).sum::<f64>() / n;
-    let rms = (res.iter().map(|r| r.0 * r.0).sum::<f64>() / n).sqrt();
-    let max = res.iter().map(|r| r.0).fold(0.0, f64::max);
-    let uv: Vec<f64> = res.iter().filter_map(|r| r.1).collect();
-    let uv_mean = uv.iter().sum::<f64>() / uv.len().max(1) as f64;
-    let uv_rms = (uv.iter().map(|x| x * x).sum::<f64>() / uv.len().max(1) as f64).sqrt();
-    // Share of samples whose texture coordinate is far off (across a chart, typically),
-    // and how many of those lie on triangles with a seam vertex (two or more wedges).
-    let uv_far = uv.iter().filter(|&&x| x > 0.05).count() as f64 / uv.len().max(1) as f64;
-    let seam_vertex = {
-        let mut first: Vec<Option<DVec2>> = vec![None; out.positions.len()];
-        let mut seam = vec![false; out.positions.len()];
-        for w in &out.wedges {
-            let uv = w.texcoord.map(|t| out.texcoords[t as usize]);
-            if let Some(uv) = uv {
-                match first[w.vertex as usize] {
-                    None => first[w.vertex as usize] = Some(uv),
-                    Some(f) if f != uv => seam[w.vertex as usize] = true,
-                    _ => {}
-                }
+/// Whether each vertex is on a texture seam (two or more wedges with different texture
+/// coordinates).
+fn seam_vertices(mesh: &Mesh) -> Vec<bool> {
+    let mut first: Vec<Option<DVec2>> = vec![None; mesh.positions.len()];
+    let mut seam = vec![false; mesh.positions.len()];
+    for w in &mesh.wedges {
+        if let Some(uv) = w.texcoord.map(|t| mesh.texcoords[t as usize]) {
+            match first[w.vertex as usize] {
+                None => first[w.vertex as usize] = Some(uv),
+                Some(f) if f != uv => seam[w.vertex as usize] = true,
+                _ => {}
             }
         }
-        seam
-    };
-    let far_at_seam = pts
-        .iter()
-        .zip(&res)
-        .filter(|(_, r)| r.1.is_some_and(|x| x > 0.05))
-        .filter(|((t, _), _)| {
-            out.triangle_vertices(*t)
-                .iter()
-                .any(|&v| seam_vertex[v as usize])
-        })
-        .count() as f64
-        / res
+    }
+    seam
+}
+
+/// The product's metrics of the result against the input (`metrics::compare`: distance both
+/// ways, normals, texture colour deviation, topology), and beside them the texture-coordinate
+/// deviation: at each of the metrics' samples of the result, its texture coordinate against
+/// the input's at the closest input point (mean, RMS, the share above 0.05, typically across
+/// a chart, and how many of those lie on triangles with a seam vertex).
+fn quality(input: &Mesh, out: &Mesh) -> serde_json::Value {
+    let options = MetricsOptions::default();
+    let metrics = scanmill::metrics::compare(out, input, &options).expect("metrics");
+    let samples = surface::sample_surface(out, options.samples, options.seed);
+    let index = surface::SurfaceIndex::new(input, "input").expect("a measurable input");
+    let closest = index.closest_all(&distance::positions(&samples));
+    let seam = seam_vertices(out);
+    let at_seam = |t: u32| {
+        out.triangle_vertices(t as usize)
             .iter()
-            .filter(|r| r.1.is_some_and(|x| x > 0.05))
-            .count()
-            .max(1) as f64;
-    let seam_share = pts
+            .any(|&v| seam[v as usize])
+    };
+    let uv: Vec<(f64, bool)> = samples
         .iter()
-        .filter(|(t, _)| {
-            out.triangle_vertices(*t)
-                .iter()
-                .any(|&v| seam_vertex[v as usize])
+        .zip(&closest)
+        .filter_map(|(s, c)| {
+            let d =
+                uv_at(out, s.triangle, s.bary)?.distance(uv_at(input, c.on.triangle, c.on.bary)?);
+            Some((d, at_seam(s.triangle)))
         })
-        .count() as f64
-        / pts.len() as f64;
-    let col: Vec<f64> = res.iter().filter_map(|r| r.2).collect();
-    let col_mean = col.iter().sum::<f64>() / col.len().max(1) as f64;
-    let col_rms = (col.iter().map(|x| x * x).sum::<f64>() / col.len().max(1) as f64).sqrt();
+        .collect();
+    let n = uv.len().max(1) as f64;
+    let far: Vec<bool> = uv
+        .iter()
+        .filter(|(d, _)| *d > 0.05)
+        .map(|(_, s)| *s)
+        .collect();
     serde_json::json!({
         "faces": out.triangles.len(),
-        "colour_mean": col_mean,
-        "colour_rms": col_rms,
-        "mean_pct": 100.0 * mean / diag,
-        "rms_pct": 100.0 * rms / diag,
-        "max_pct": 100.0 * max / diag,
-        "uv_mean": uv_mean,
-        "uv_rms": uv_rms,
-        "uv_far": uv_far,
-        "uv_far_at_seam": far_at_seam,
-        "seam_share": seam_share,
+        "metrics": metrics,
+        "uv_mean": uv.iter().map(|(d, _)| d).sum::<f64>() / n,
+        "uv_rms": (uv.iter().map(|(d, _)| d * d).sum::<f64>() / n).sqrt(),
+        "uv_far": far.len() as f64 / n,
+        "uv_far_at_seam": far.iter().filter(|s| **s).count() as f64 / far.len().max(1) as f64,
+        "seam_share": samples.iter().filter(|s| at_seam(s.triangle)).count() as f64 / samples.len().max(1) as f64,
     })
 }
 
@@ -351,7 +182,11 @@ fn main() {
         .init();
     let args = Args::parse();
     let t0 = Instant::now();
-    let (mut mesh, _) = load(&args.input, &LoadOptions::default()).expect("load");
+    let options = LoadOptions {
+        texture_override: args.texture.clone(),
+        ..LoadOptions::default()
+    };
+    let (mut mesh, _) = load(&args.input, &options).expect("load");
     for _ in 0..args.subdivide {
         mesh = subdivide(&mesh);
     }
@@ -395,34 +230,22 @@ fn main() {
             let _ = Method::FaceCollapse;
         }
     }
-    let image = args
-        .quality
-        .then(|| {
-            args.texture.clone().or_else(|| {
-                mesh.materials
-                    .iter()
-                    .find_map(|m| m.diffuse_texture.as_ref().map(|t| t.path.clone()))
-            })
-        })
-        .flatten()
-        .and_then(|p| image::open(p).ok())
-        .map(|i| Image(i.to_rgb8()));
     if args.seam_fix {
         if args.quality {
             // The same figures before the fix, so that one run gives both.
             println!(
                 "{}",
-                serde_json::json!({ "before_seam_fix": quality(&mesh, &out, image.as_ref()) })
+                serde_json::json!({ "before_seam_fix": quality(&mesh, &out) })
             );
         }
         if args.meshopt {
             // meshoptimizer records no origins: take for each output triangle the input
             // triangle closest to its centroid.
-            let grid = Grid::new(&mesh);
+            let index = surface::SurfaceIndex::new(&mesh, "input").expect("a measurable input");
             out.triangle_origins = (0..out.triangles.len())
                 .map(|t| {
                     let p = out.triangle_positions(t);
-                    grid.closest((p[0] + p[1] + p[2]) / 3.0).1 as u32
+                    index.closest((p[0] + p[1] + p[2]) / 3.0).on.triangle
                 })
                 .collect();
         }
@@ -430,7 +253,7 @@ fn main() {
         println!("{}", serde_json::to_string(&r).unwrap());
     }
     if args.quality {
-        println!("{}", quality(&mesh, &out, image.as_ref()));
+        println!("{}", quality(&mesh, &out));
     }
     if args.audit {
         let a = decimate::audit::audit(&mesh, &out);

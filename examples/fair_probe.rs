@@ -19,6 +19,7 @@ use scanmill::metrics::distance::{surface_distance, vertex_distances};
 use scanmill::metrics::volume;
 use scanmill::ops::border::Border;
 use scanmill::ops::fair::{self, FairParams, RelaxParams, Schedule};
+use scanmill::ops::smooth::TaubinCount;
 use std::time::Instant;
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
@@ -170,7 +171,7 @@ fn main() {
                 .map_or("open".to_string(), |v| format!("{v:+.3}%"))
         };
         let mut t = noisy.clone();
-        taubin(&mut t, 0.53, -0.54, 13);
+        taubin(&mut t, 13, TaubinCount::Pairs);
         let (dn, dt) = (dist(&noisy), dist(&t));
         println!(
             "{name}: V {} noisy {dn:.4e}, Taubin {:.3} of noisy, vol {}",

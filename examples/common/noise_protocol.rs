@@ -1,10 +1,12 @@
 //! The noise protocol of issue #4, shared by the fairing probes (`fair_probe`,
 //! `bilap_probe`): the four scans, their noisy copies (Gaussian along the vertex normals,
-//! σ = 0.2 × mean edge length, seed 1) and the Taubin reference (spec/smoothing.md §5).
+//! σ = 0.2 × mean edge length, seed 1) and the Taubin reference (the `smooth` step's).
 
-use glam::DVec3;
-use scanmill::mesh::{LoadOptions, Mesh, Topology, io};
+use scanmill::mesh::{LoadOptions, Mesh, io};
 use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
+use scanmill::ops::smooth::{
+    MethodName, SmoothMethod, SmoothParams, TaubinCount, TaubinParams, smooth,
+};
 use std::path::Path;
 
 const DATA: &str = "../shared/data";
@@ -47,29 +49,17 @@ pub fn noisy(clean: &Mesh) -> Mesh {
     noisy_copy(clean, &options).0
 }
 
-/// Umbrella operator `(L x)_v = mean of the neighbours − x_v`, every vertex with
-/// neighbours.
-pub fn umbrella(topo: &Topology, x: &[DVec3]) -> Vec<DVec3> {
-    (0..x.len())
-        .map(|v| {
-            let nb = topo.vertex_neighbours(v as u32);
-            if nb.is_empty() {
-                return DVec3::ZERO;
-            }
-            nb.iter().map(|&j| x[j as usize]).sum::<DVec3>() / nb.len() as f64 - x[v]
-        })
-        .collect()
-}
-
-/// Taubin λ|μ: `passes` buffered umbrella passes, λ first (spec/smoothing.md §5 counts one
-/// pass as one iteration; the `smooth` step and MeshLab count λ+μ pairs).
-pub fn taubin(mesh: &mut Mesh, lambda: f64, mu: f64, passes: usize) {
-    let topo = mesh.topology();
-    for k in 0..passes {
-        let f = if k % 2 == 0 { lambda } else { mu };
-        let l = umbrella(&topo, &mesh.positions);
-        for (p, d) in mesh.positions.iter_mut().zip(l) {
-            *p += f * d;
-        }
-    }
+/// Taubin λ|μ as the `smooth` step runs it (Table A.2: λ = 0.53, μ = −0.54, borders
+/// fixed): `iterations` λ|μ pairs (`TaubinCount::Pairs`, what issue #26 calls Taubin) or
+/// single passes (`TaubinCount::Passes`, the thesis' accounting).
+pub fn taubin(mesh: &mut Mesh, iterations: u32, count: TaubinCount) {
+    let params = SmoothParams {
+        method: SmoothMethod::Taubin(TaubinParams {
+            count,
+            ..TaubinParams::default()
+        }),
+        iterations,
+        ..SmoothParams::defaults(MethodName::Taubin)
+    };
+    smooth(mesh, &params);
 }
