@@ -74,29 +74,7 @@ pub fn parse(mtl_path: &Path, bytes: &[u8]) -> Result<Vec<MtlMaterial>> {
             continue;
         };
         if keyword.eq_ignore_ascii_case("map_Kd") {
-            let (options, file) = split_map_arguments(args);
-            if file.is_empty() {
-                return Err(MeshError::malformed(
-                    mtl_path,
-                    Location::Line(pending_line),
-                    "map_Kd without a file name",
-                ));
-            }
-            if !options.is_empty() {
-                // The model keeps only the file; options such as `-s` are rare in scans.
-                tracing::warn!(
-                    "{}: line {pending_line}: map_Kd options {options:?} are not kept",
-                    mtl_path.display()
-                );
-            }
-            if current.diffuse.is_some() {
-                tracing::warn!(
-                    "{}: line {pending_line}: second map_Kd in material {:?}; the last one wins",
-                    mtl_path.display(),
-                    current.name
-                );
-            }
-            current.diffuse = Some((normalise_name(file), pending_line));
+            diffuse_map(mtl_path, pending_line, current, args)?;
         } else {
             current
                 .other_statements
@@ -104,6 +82,34 @@ pub fn parse(mtl_path: &Path, bytes: &[u8]) -> Result<Vec<MtlMaterial>> {
         }
     }
     Ok(materials)
+}
+
+/// A `map_Kd` statement of `current`: its file (options are not kept), the last one winning.
+fn diffuse_map(mtl_path: &Path, line: u64, current: &mut MtlMaterial, args: &str) -> Result<()> {
+    let (options, file) = split_map_arguments(args);
+    if file.is_empty() {
+        return Err(MeshError::malformed(
+            mtl_path,
+            Location::Line(line),
+            "map_Kd without a file name",
+        ));
+    }
+    if !options.is_empty() {
+        // The model keeps only the file; options such as `-s` are rare in scans.
+        tracing::warn!(
+            "{}: line {line}: map_Kd options {options:?} are not kept",
+            mtl_path.display()
+        );
+    }
+    if current.diffuse.is_some() {
+        tracing::warn!(
+            "{}: line {line}: second map_Kd in material {:?}; the last one wins",
+            mtl_path.display(),
+            current.name
+        );
+    }
+    current.diffuse = Some((normalise_name(file), line));
+    Ok(())
 }
 
 /// A statement as kept: a map statement with its file name normalised, anything else as

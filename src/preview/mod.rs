@@ -208,77 +208,36 @@ fn render_with(
         0.03,
     )
     .ok_or(PreviewError::Empty("no finite vertex to frame"))?;
-
-    let distances = match input_index {
-        Some(index) => {
-            crate::metrics::surface::check_measurable(result, "result")?;
-            crate::metrics::distance::vertex_distances_with(result, index)
-        }
-        None => crate::metrics::distance::vertex_distances(result, input)?,
-    };
-    let diagonal = input.bounding_box_diagonal();
-    let percent = |d: f64| {
-        if diagonal > 0.0 {
-            100.0 * d / diagonal
-        } else {
-            0.0
-        }
-    };
-    let max_percent = percent(distances.iter().copied().fold(0.0, f64::max));
-    let p99_percent = percent(crate::metrics::percentile(&distances, 0.99));
-    let (scale_percent, scale_label) = nice_ceil(p99_percent);
+    let mut heat = Heat::new(input, input_index, result)?;
 
     let size = options.size;
     let mut image = RgbImage::from_pixel(3 * size, size, Rgb(BACKGROUND));
     let mut cache = TextureCache::new();
-    let ss = options.supersample;
     let panels = [
         Surface::appearance(input, &mut cache),
         Surface::appearance(result, &mut cache),
         Surface::new(
             result,
             Albedo::Scalar {
-                values: distances.iter().map(|&d| percent(d)).collect(),
-                scale: scale_percent,
+                values: std::mem::take(&mut heat.percents),
+                scale: heat.scale_percent,
             },
         ),
     ];
     for (i, surface) in panels.iter().enumerate() {
         let panel = if i == 0 { "input" } else { "result" };
+        let x0 = i as u32 * size;
         draw_panel(
             surface,
             panel,
             &camera,
-            ss,
+            options.supersample,
             size,
             &mut image,
-            i as u32 * size,
+            x0,
         )?;
     }
-
-    let k = layout.k;
-    let titles = ["input", "result", "distance to input"];
-    for (i, title) in titles.iter().enumerate() {
-        font::draw_text(
-            &mut image,
-            (i as u32 * size + 4 * k) as i64,
-            (4 * k) as i64,
-            title,
-            k,
-            INK,
-        );
-    }
-    let max_label = format!("max {}%", significant(max_percent));
-    let right = 3 * size - 4 * k;
-    font::draw_text(
-        &mut image,
-        (right - font::text_width(&max_label, k)) as i64,
-        (4 * k) as i64,
-        &max_label,
-        k,
-        INK,
-    );
-    draw_colour_bar(&mut image, &layout, 2 * size, &format!("{scale_label}%"));
+    draw_labels(&mut image, &layout, size, &heat);
 
     Ok(Preview {
         figures: PreviewFigures {
@@ -286,13 +245,85 @@ fn render_with(
             height: image.height(),
             view,
             up,
-            scale_percent,
-            max_percent,
-            p99_percent,
+            scale_percent: heat.scale_percent,
+            max_percent: heat.max_percent,
+            p99_percent: heat.p99_percent,
             render_ms: start.elapsed().as_secs_f64() * 1e3,
         },
         image,
     })
+}
+
+/// The distance panel's figures: each result vertex's distance to the input in % of the
+/// input's bounding-box diagonal, its maximum and 99th percentile, and the colour scale
+/// (the 99th percentile rounded up to a readable number).
+struct Heat {
+    percents: Vec<f64>,
+    max_percent: f64,
+    p99_percent: f64,
+    scale_percent: f64,
+    scale_label: String,
+}
+
+impl Heat {
+    fn new(
+        input: &Mesh,
+        input_index: Option<&SurfaceIndex<'_>>,
+        result: &Mesh,
+    ) -> Result<Heat, PreviewError> {
+        let distances = match input_index {
+            Some(index) => {
+                crate::metrics::surface::check_measurable(result, "result")?;
+                crate::metrics::distance::vertex_distances_with(result, index)
+            }
+            None => crate::metrics::distance::vertex_distances(result, input)?,
+        };
+        let diagonal = input.bounding_box_diagonal();
+        let percent = |d: f64| {
+            if diagonal > 0.0 {
+                100.0 * d / diagonal
+            } else {
+                0.0
+            }
+        };
+        let max_percent = percent(distances.iter().copied().fold(0.0, f64::max));
+        let p99_percent = percent(crate::metrics::percentile(&distances, 0.99));
+        let (scale_percent, scale_label) = nice_ceil(p99_percent);
+        Ok(Heat {
+            percents: distances.iter().map(|&d| percent(d)).collect(),
+            max_percent,
+            p99_percent,
+            scale_percent,
+            scale_label,
+        })
+    }
+}
+
+/// The panels' titles, the maximum distance and the colour bar.
+fn draw_labels(image: &mut RgbImage, layout: &Layout, size: u32, heat: &Heat) {
+    let k = layout.k;
+    let titles = ["input", "result", "distance to input"];
+    for (i, title) in titles.iter().enumerate() {
+        font::draw_text(
+            image,
+            (i as u32 * size + 4 * k) as i64,
+            (4 * k) as i64,
+            title,
+            k,
+            INK,
+        );
+    }
+    let max_label = format!("max {}%", significant(heat.max_percent));
+    let right = 3 * size - 4 * k;
+    font::draw_text(
+        image,
+        (right - font::text_width(&max_label, k)) as i64,
+        (4 * k) as i64,
+        &max_label,
+        k,
+        INK,
+    );
+    draw_colour_bar(image, layout, 2 * size, &format!("{}%", heat.scale_label));
 }
 
 /// Draws one surface into the panel whose left edge is column `x0`.

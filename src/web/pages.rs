@@ -215,46 +215,41 @@ pub fn job_page(id: i64, job: &Value) -> String {
             "<h2>Preview</h2><p><img class=\"full\" id=\"preview\" src=\"/jobs/{id}/preview\" alt=\"preview of job {id}\"></p>"
         );
     }
-    let mut summary = Vec::new();
-    if let Value::Object(map) = job {
-        for (k, v) in map {
-            if !(v.is_object() || v.is_array()) {
-                summary.push((k.clone(), cell(v)));
-            }
-        }
-    }
     body.push_str("<h2>Job</h2>");
-    body.push_str(&key_value_table(&summary));
-    let mut metrics = Vec::new();
-    if job["report"]["metrics"].is_object() {
-        flatten("", &job["report"]["metrics"], &mut metrics);
-    }
-    body.push_str("<h2>Metrics</h2>");
-    body.push_str(&if metrics.is_empty() {
-        "<p>none recorded</p>".into()
-    } else {
-        key_value_table(&metrics)
-    });
-    body.push_str("<h2>Steps</h2>");
-    body.push_str(&rows_table(
-        &job["report"]["steps"],
-        &[
-            "kind",
-            "wall_ms",
-            "vertices_before",
-            "vertices_after",
-            "faces_before",
-            "faces_after",
-        ],
-    ));
+    body.push_str(&key_value_table(&job_summary(job)));
+    job_metrics(&mut body, job);
     let _ = write!(
         body,
-        "<h2>Recipe (as resolved)</h2><pre>{}</pre>",
+        "<h2>Steps</h2>{}<h2>Recipe (as resolved)</h2><pre>{}</pre>",
+        rows_table(&job["report"]["steps"], &JOB_STEP_COLUMNS),
         pretty(&job["recipe"])
     );
-    body.push_str("<h2>Attempts</h2>");
-    body.push_str(&rows_table(
-        &job["attempts_log"],
+    for (heading, key, columns) in JOB_TABLES {
+        let _ = write!(body, "<h2>{heading}</h2>{}", rows_table(&job[key], columns));
+    }
+    let _ = write!(
+        body,
+        "<h2>Everything recorded</h2><details><summary>as <code>scanmill show {id}</code> prints it</summary><pre>{}</pre></details>",
+        pretty(job)
+    );
+    html::page(&title, &body)
+}
+
+/// The columns of the job page's step table.
+const JOB_STEP_COLUMNS: [&str; 6] = [
+    "kind",
+    "wall_ms",
+    "vertices_before",
+    "vertices_after",
+    "faces_before",
+    "faces_after",
+];
+
+/// The job page's tables after the recipe: heading, key in `show`'s JSON, columns.
+const JOB_TABLES: [(&str, &str, &[&str]); 4] = [
+    (
+        "Attempts",
+        "attempts_log",
         &[
             "n",
             "outcome",
@@ -267,25 +262,37 @@ pub fn job_page(id: i64, job: &Value) -> String {
             "owner",
             "app_version",
         ],
-    ));
-    body.push_str("<h2>Outputs</h2>");
-    body.push_str(&rows_table(&job["outputs"], &["path", "bytes", "sha256"]));
-    body.push_str("<h2>Inputs</h2>");
-    body.push_str(&rows_table(
-        &job["inputs"],
-        &["rel_path", "role", "size", "sha256"],
-    ));
-    body.push_str("<h2>Seen at</h2>");
-    body.push_str(&rows_table(
-        &job["sightings"],
-        &["root", "rel_path", "seen_at"],
-    ));
-    let _ = write!(
-        body,
-        "<h2>Everything recorded</h2><details><summary>as <code>scanmill show {id}</code> prints it</summary><pre>{}</pre></details>",
-        pretty(job)
-    );
-    html::page(&title, &body)
+    ),
+    ("Outputs", "outputs", &["path", "bytes", "sha256"]),
+    ("Inputs", "inputs", &["rel_path", "role", "size", "sha256"]),
+    ("Seen at", "sightings", &["root", "rel_path", "seen_at"]),
+];
+
+/// The job's plain fields (not its tables) as key and cell.
+fn job_summary(job: &Value) -> Vec<(String, String)> {
+    let mut summary = Vec::new();
+    if let Value::Object(map) = job {
+        for (k, v) in map {
+            if !(v.is_object() || v.is_array()) {
+                summary.push((k.clone(), cell(v)));
+            }
+        }
+    }
+    summary
+}
+
+/// The report's metrics, flattened, or "none recorded".
+fn job_metrics(body: &mut String, job: &Value) {
+    let mut metrics = Vec::new();
+    if job["report"]["metrics"].is_object() {
+        flatten("", &job["report"]["metrics"], &mut metrics);
+    }
+    body.push_str("<h2>Metrics</h2>");
+    body.push_str(&if metrics.is_empty() {
+        "<p>none recorded</p>".into()
+    } else {
+        key_value_table(&metrics)
+    });
 }
 
 /// The Health page.

@@ -33,11 +33,62 @@ fn header(out: &mut String, name: &str, kind: &str, help: &str) {
     let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
 }
 
+/// One gauge without labels: its header and its value.
+fn gauge(out: &mut String, name: &str, help: &str, value: impl std::fmt::Display) {
+    header(out, name, "gauge", help);
+    let _ = writeln!(out, "{name} {value}");
+}
+
 /// The whole exposition.
 pub fn render(f: &Figures, live: &LiveStatus) -> String {
     let mut s = String::new();
-    header(
+    jobs(&mut s, f);
+    gauge(
         &mut s,
+        "scanmill_queue_depth",
+        "Jobs queued or waiting for a retry.",
+        f.queue_depth,
+    );
+    gauge(
+        &mut s,
+        "scanmill_workers_busy",
+        "Jobs running now.",
+        live.running,
+    );
+    gauge(
+        &mut s,
+        "scanmill_workers",
+        "Jobs that may run at the same time (workers).",
+        live.workers,
+    );
+    gauge(
+        &mut s,
+        "scanmill_waiting_scans",
+        "Scans waiting for a missing or unreadable member.",
+        f.waiting,
+    );
+    let paused = matches!(live.state, super::DaemonState::Paused(_));
+    gauge(
+        &mut s,
+        "scanmill_paused",
+        "1 while claiming is paused (low disk), else 0.",
+        u8::from(paused),
+    );
+    failures(&mut s, f);
+    let last = f.last_success_ms.map_or(0.0, |ms| ms as f64 / 1e3);
+    gauge(
+        &mut s,
+        "scanmill_last_success_timestamp_seconds",
+        "When the most recent successful job finished (Unix time); 0 if none has.",
+        format_args!("{last:.3}"),
+    );
+    processing_times(&mut s, f);
+    s
+}
+
+fn jobs(s: &mut String, f: &Figures) {
+    header(
+        s,
         "scanmill_jobs",
         "gauge",
         "Jobs in the store by state and watched folder.",
@@ -50,44 +101,11 @@ pub fn render(f: &Figures, live: &LiveStatus) -> String {
             label(root)
         );
     }
+}
+
+fn failures(s: &mut String, f: &Figures) {
     header(
-        &mut s,
-        "scanmill_queue_depth",
-        "gauge",
-        "Jobs queued or waiting for a retry.",
-    );
-    let _ = writeln!(s, "scanmill_queue_depth {}", f.queue_depth);
-    header(
-        &mut s,
-        "scanmill_workers_busy",
-        "gauge",
-        "Jobs running now.",
-    );
-    let _ = writeln!(s, "scanmill_workers_busy {}", live.running);
-    header(
-        &mut s,
-        "scanmill_workers",
-        "gauge",
-        "Jobs that may run at the same time (workers).",
-    );
-    let _ = writeln!(s, "scanmill_workers {}", live.workers);
-    header(
-        &mut s,
-        "scanmill_waiting_scans",
-        "gauge",
-        "Scans waiting for a missing or unreadable member.",
-    );
-    let _ = writeln!(s, "scanmill_waiting_scans {}", f.waiting);
-    header(
-        &mut s,
-        "scanmill_paused",
-        "gauge",
-        "1 while claiming is paused (low disk), else 0.",
-    );
-    let paused = matches!(live.state, super::DaemonState::Paused(_));
-    let _ = writeln!(s, "scanmill_paused {}", u8::from(paused));
-    header(
-        &mut s,
+        s,
         "scanmill_attempt_failures_total",
         "counter",
         "Failed attempts by error kind (retried, failed for good or quarantined).",
@@ -99,16 +117,11 @@ pub fn render(f: &Figures, live: &LiveStatus) -> String {
             label(kind)
         );
     }
+}
+
+fn processing_times(s: &mut String, f: &Figures) {
     header(
-        &mut s,
-        "scanmill_last_success_timestamp_seconds",
-        "gauge",
-        "When the most recent successful job finished (Unix time); 0 if none has.",
-    );
-    let last = f.last_success_ms.map_or(0.0, |ms| ms as f64 / 1e3);
-    let _ = writeln!(s, "scanmill_last_success_timestamp_seconds {last:.3}");
-    header(
-        &mut s,
+        s,
         "scanmill_job_processing_seconds",
         "histogram",
         "Processing time of finished jobs by watched folder.",
@@ -137,7 +150,6 @@ pub fn render(f: &Figures, live: &LiveStatus) -> String {
             h.count
         );
     }
-    s
 }
 
 #[cfg(test)]

@@ -398,93 +398,139 @@ fn add_primitive(
     transform: &DMat4,
     has_materials: bool,
 ) -> std::result::Result<(), String> {
-    if p.mode() != Mode::Triangles {
-        return Err(format!(
-            "primitive mode {:?} is not supported (only triangles)",
-            p.mode()
-        ));
-    }
-    if p.extension_value("KHR_draco_mesh_compression").is_some() {
-        return Err("Draco-compressed primitives are not supported".into());
-    }
-    let positions = accessor::read_vec3(
-        &p.get(&Semantic::Positions).ok_or("no POSITION")?,
-        buffers,
-        "POSITION",
-    )?;
-    let n = positions.len();
-    let normals = p
-        .get(&Semantic::Normals)
-        .map(|a| accessor::read_vec3(&a, buffers, "NORMAL"))
-        .transpose()?;
-    let uvs = p
-        .get(&Semantic::TexCoords(0))
-        .map(|a| accessor::read_texcoords(&a, buffers))
-        .transpose()?;
-    if normals.as_ref().is_some_and(|v| v.len() != n) || uvs.as_ref().is_some_and(|v| v.len() != n)
-    {
-        return Err("attributes have different counts".into());
-    }
-    let indices = match p.indices() {
-        Some(a) => accessor::read_indices(&a, buffers)?,
-        None => (0..n as u32).collect(),
-    };
-    if indices.len() % 3 != 0 {
-        return Err(format!(
-            "{} indices is not a whole number of triangles",
-            indices.len()
-        ));
-    }
-    if let Some(&bad) = indices.iter().find(|&&i| i as usize >= n) {
-        return Err(format!(
-            "index {bad} is out of range (the primitive has {n} vertices)"
-        ));
-    }
-    let (v0, t0, n0) = (b.positions.len(), b.texcoords.len(), b.normals.len());
-    let identity = *transform == DMat4::IDENTITY;
-    let normal_matrix = DMat3::from_mat4(*transform).inverse().transpose();
-    for p in &positions {
-        let p = DVec3::from_array(p.map(f64::from));
-        b.positions.push(if identity {
-            p
-        } else {
-            transform.transform_point3(p)
-        });
-    }
-    if let Some(normals) = &normals {
-        b.normals.extend(normals.iter().map(|v| {
-            let v = DVec3::from_array(v.map(f64::from));
-            if identity {
-                v
-            } else {
-                (normal_matrix * v).normalize_or_zero()
-            }
-        }));
-    }
-    if let Some(uvs) = &uvs {
-        b.texcoords.extend(
-            uvs.iter()
-                .map(|t| DVec2::new(f64::from(t[0]), 1.0 - f64::from(t[1]))),
-        );
-    }
-    // A mirroring transform turns the winding over; swap two corners to keep it outward.
-    let mirrored = DMat3::from_mat4(*transform).determinant() < 0.0;
+    let attributes = Attributes::read(p, buffers)?;
+    let first = (b.positions.len(), b.texcoords.len(), b.normals.len());
+    attributes.push_vertices(b, transform);
     let material = p
         .material()
         .index()
         .map_or(b.materials.len().saturating_sub(1), |m| m) as Index;
-    let corner = |i: u32| Corner {
-        vertex: (v0 + i as usize) as Index,
-        texcoord: uvs.as_ref().map(|_| (t0 + i as usize) as Index),
-        normal: normals.as_ref().map(|_| (n0 + i as usize) as Index),
-    };
-    for tri in indices.chunks_exact(3) {
-        let [a, bb, c] = [tri[0], tri[1], tri[2]].map(corner);
-        b.faces.push(if mirrored { [a, c, bb] } else { [a, bb, c] });
-        if has_materials {
-            b.face_materials.push(material);
+    // A mirroring transform turns the winding over; swap two corners to keep it outward.
+    let mirrored = DMat3::from_mat4(*transform).determinant() < 0.0;
+    attributes.push_faces(b, first, mirrored, has_materials.then_some(material));
+    note_skipped_attributes(b, p);
+    Ok(())
+}
+
+/// A triangle primitive's attributes and indices, checked against each other.
+struct Attributes {
+    positions: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
+    indices: Vec<u32>,
+}
+
+impl Attributes {
+    fn read(p: &gltf::Primitive, buffers: &Buffers) -> std::result::Result<Attributes, String> {
+        if p.mode() != Mode::Triangles {
+            return Err(format!(
+                "primitive mode {:?} is not supported (only triangles)",
+                p.mode()
+            ));
+        }
+        if p.extension_value("KHR_draco_mesh_compression").is_some() {
+            return Err("Draco-compressed primitives are not supported".into());
+        }
+        let positions = accessor::read_vec3(
+            &p.get(&Semantic::Positions).ok_or("no POSITION")?,
+            buffers,
+            "POSITION",
+        )?;
+        let n = positions.len();
+        let normals = p
+            .get(&Semantic::Normals)
+            .map(|a| accessor::read_vec3(&a, buffers, "NORMAL"))
+            .transpose()?;
+        let uvs = p
+            .get(&Semantic::TexCoords(0))
+            .map(|a| accessor::read_texcoords(&a, buffers))
+            .transpose()?;
+        if normals.as_ref().is_some_and(|v| v.len() != n)
+            || uvs.as_ref().is_some_and(|v| v.len() != n)
+        {
+            return Err("attributes have different counts".into());
+        }
+        let indices = match p.indices() {
+            Some(a) => accessor::read_indices(&a, buffers)?,
+            None => (0..n as u32).collect(),
+        };
+        if indices.len() % 3 != 0 {
+            return Err(format!(
+                "{} indices is not a whole number of triangles",
+                indices.len()
+            ));
+        }
+        if let Some(&bad) = indices.iter().find(|&&i| i as usize >= n) {
+            return Err(format!(
+                "index {bad} is out of range (the primitive has {n} vertices)"
+            ));
+        }
+        Ok(Attributes {
+            positions,
+            normals,
+            uvs,
+            indices,
+        })
+    }
+
+    /// Positions and normals transformed; texture coordinates flipped to OBJ's origin
+    /// (bottom left).
+    fn push_vertices(&self, b: &mut MeshBuilder, transform: &DMat4) {
+        let identity = *transform == DMat4::IDENTITY;
+        let normal_matrix = DMat3::from_mat4(*transform).inverse().transpose();
+        for p in &self.positions {
+            let p = DVec3::from_array(p.map(f64::from));
+            b.positions.push(if identity {
+                p
+            } else {
+                transform.transform_point3(p)
+            });
+        }
+        if let Some(normals) = &self.normals {
+            b.normals.extend(normals.iter().map(|v| {
+                let v = DVec3::from_array(v.map(f64::from));
+                if identity {
+                    v
+                } else {
+                    (normal_matrix * v).normalize_or_zero()
+                }
+            }));
+        }
+        if let Some(uvs) = &self.uvs {
+            b.texcoords.extend(
+                uvs.iter()
+                    .map(|t| DVec2::new(f64::from(t[0]), 1.0 - f64::from(t[1]))),
+            );
         }
     }
+
+    /// The triangles, their corners indexing from `first` (positions, texture coordinates,
+    /// normals as the builder held before [`Attributes::push_vertices`]).
+    fn push_faces(
+        &self,
+        b: &mut MeshBuilder,
+        first: (usize, usize, usize),
+        mirrored: bool,
+        material: Option<Index>,
+    ) {
+        let (v0, t0, n0) = first;
+        let corner = |i: u32| Corner {
+            vertex: (v0 + i as usize) as Index,
+            texcoord: self.uvs.as_ref().map(|_| (t0 + i as usize) as Index),
+            normal: self.normals.as_ref().map(|_| (n0 + i as usize) as Index),
+        };
+        for tri in self.indices.chunks_exact(3) {
+            let [a, bb, c] = [tri[0], tri[1], tri[2]].map(corner);
+            b.faces.push(if mirrored { [a, c, bb] } else { [a, bb, c] });
+            if let Some(material) = material {
+                b.face_materials.push(material);
+            }
+        }
+    }
+}
+
+/// Attributes scanmill does not read are named in the load report, once each.
+fn note_skipped_attributes(b: &mut MeshBuilder, p: &gltf::Primitive) {
     for (semantic, _) in p.attributes() {
         if !matches!(
             semantic,
@@ -496,5 +542,4 @@ fn add_primitive(
             }
         }
     }
-    Ok(())
 }

@@ -157,8 +157,17 @@ pub fn audit(input: &Mesh, output: &Mesh) -> Audit {
     let mut a = Audit {
         before: tin.counts(),
         after: tout.counts(),
+        chart_jumps: chart_jumps(input, &tin, output),
+        seam_vertices_off_seam: seam_vertices_off_seam(input, &tin, output, &tout, diag),
+        border_edges_off_border: border_edges_off_border(input, &tin, output, &tout),
         ..Default::default()
     };
+    count_bad_faces(input, output, diag, &mut a);
+    a
+}
+
+/// Output triangles turned over against their origin, and of zero area.
+fn count_bad_faces(input: &Mesh, output: &Mesh, diag: f64, a: &mut Audit) {
     for t in 0..output.triangles.len() {
         let o = output.triangle_origin(t) as usize;
         let n = output.triangle_cross(t);
@@ -174,9 +183,13 @@ pub fn audit(input: &Mesh, output: &Mesh) -> Audit {
             a.zero_area_faces += 1;
         }
     }
-    // Charts.
+}
+
+/// Output triangles whose texture corners are not all in their origin's chart.
+fn chart_jumps(input: &Mesh, tin: &Topology, output: &Mesh) -> usize {
+    let mut jumps = 0;
     if let Some(grid) = UvGrid::new(input) {
-        let chart = charts(input, &tin);
+        let chart = charts(input, tin);
         for t in 0..output.triangles.len() {
             let o = output.triangle_origin(t) as usize;
             let Some(uv) = uvs(output, t) else { continue };
@@ -193,11 +206,23 @@ pub fn audit(input: &Mesh, output: &Mesh) -> Audit {
                 })
             });
             if !ok {
-                a.chart_jumps += 1;
+                jumps += 1;
             }
         }
     }
-    // Seam vertices on input seam edges (positions; grid over the seam segments).
+    jumps
+}
+
+/// Output seam vertices that lie on no input seam edge (positions; a grid over the seam
+/// segments).
+fn seam_vertices_off_seam(
+    input: &Mesh,
+    tin: &Topology,
+    output: &Mesh,
+    tout: &Topology,
+    diag: f64,
+) -> usize {
+    let mut off = 0;
     let seam_segments: Vec<(DVec3, DVec3)> = (0..tin.edge_count() as u32)
         .filter(|&e| tin.is_texture_seam_edge(e))
         .map(|e| {
@@ -234,11 +259,16 @@ pub fn audit(input: &Mesh, output: &Mesh) -> Audit {
                 })
             });
             if !on {
-                a.seam_vertices_off_seam += 1;
+                off += 1;
             }
         }
     }
-    // Border edges on input border edges (by exact position pairs).
+    off
+}
+
+/// Output border edges whose ends are not both input border vertices (by exact position).
+fn border_edges_off_border(input: &Mesh, tin: &Topology, output: &Mesh, tout: &Topology) -> usize {
+    let mut off = 0;
     let border_in: HashSet<([u64; 3], [u64; 3])> = tin
         .boundary_edges()
         .map(|e| {
@@ -259,8 +289,8 @@ pub fn audit(input: &Mesh, output: &Mesh) -> Audit {
             key(output.positions[y as usize]),
         );
         if !(border_vertices_in.contains(&kx) && border_vertices_in.contains(&ky)) {
-            a.border_edges_off_border += 1;
+            off += 1;
         }
     }
-    a
+    off
 }
