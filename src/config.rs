@@ -1,4 +1,4 @@
-//! The daemon's configuration (`config/scanmill.toml`, DESIGN.md "Daemon configuration").
+//! The daemon's configuration (`config/scanmill.toml`, docs/service.md "Configuration keys").
 //!
 //! Relative paths are taken relative to the working directory the daemon starts in (the
 //! repository root for `cargo run`, `/` under systemd, where the shipped unit uses absolute

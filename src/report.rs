@@ -1,4 +1,4 @@
-//! The processing report (DESIGN.md "Report JSON"): the input, the resolved recipe, one
+//! The processing report (see README "Recipes" for what it holds): the input, the resolved recipe, one
 //! entry per step, the final metrics and the files written. `process --report` writes it
 //! as JSON and the daemon stores the same figures in SQLite.
 

@@ -1,11 +1,10 @@
 //! Surface distance in the manner of Metro / MeshLab's Hausdorff filter
-//! (spec/decimation.md §3.2, §8.1): area-uniform seeded samples on one surface, the exact
+//! (as the decimation thesis measures its results): area-uniform seeded samples on one surface, the exact
 //! closest point on the other, both directions. The thesis reports the one-sided
 //! decimated → original figures; we give both sides and the symmetric (pooled) figures,
 //! whose maximum is the Hausdorff distance.
 //!
-//! Also the smoothing protocol's per-vertex "distance deviation" (spec/smoothing.md §7.4
-//! item 2) for meshes with unchanged connectivity: the offset of each vertex along the
+//! Also the smoothing thesis' per-vertex "distance deviation" (Svěchovský 2010, §4.2.4) for meshes with unchanged connectivity: the offset of each vertex along the
 //! reference's outward vertex normal.
 
 use super::surface::{Closest, SurfaceIndex, SurfacePoint, sample_surface};

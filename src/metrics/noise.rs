@@ -1,9 +1,10 @@
-//! The smoothing thesis' noise model (spec/smoothing.md §7.3, §10 step 2): Gaussian noise
+//! The noise model of the smoothing thesis (Svěchovský, *Vyhlazování polygonálních modelů*, FIT VUT Brno 2010,
+//! §4.2.2, the `mdNoise` module): Gaussian noise
 //! with standard deviation σ = k · ē, ē the mean edge length of the clean mesh, k = 0.2 by
 //! default, from a recorded seed. Used by tests, benchmarks and `scanmill compare`.
 //!
-//! The thesis does not say in which direction the noise goes (pitfall 10). The digest
-//! suggests independent noise per coordinate; issue #3 asks for noise along the vertex
+//! The thesis does not say in which direction the noise goes ; independent noise per
+//! coordinate is one reading; issue #3 asks for noise along the vertex
 //! normals, which moves the surface without sliding vertices along it (what a scanner's
 //! depth error does). Both are offered; along the normals is the default.
 

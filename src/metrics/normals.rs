@@ -1,5 +1,6 @@
-//! Angular deviation of face normals (spec/smoothing.md §7.4 item 1; spec/decimation.md §3.3
-//! "more than 90°" = a flipped face).
+//! Angular deviation of face normals (the normal criterion of the smoothing thesis,
+//! Svěchovský 2010, §4.2.4; with the decimation thesis' reading of "more than 90°" as a
+//! flipped face).
 //!
 //! - Same connectivity (smoothing, fairing, normals): the angle between face f of the
 //!   result and face f of the reference.
@@ -9,7 +10,7 @@
 //!   input triangle, via `triangle_origins`: e.g. a face a crop kept) is that triangle: no
 //!   query needed.
 //!
-//! Zero-area faces have no normal (smoothing.md pitfall 13); they are counted, not measured.
+//! Zero-area faces have no normal; they are counted, not measured.
 
 use super::surface::{self, SurfaceIndex};
 use super::{MetricsError, Summary, same_connectivity};
@@ -51,7 +52,7 @@ fn unit_normal(mesh: &Mesh, t: usize) -> Option<DVec3> {
 }
 
 /// atan2 rather than acos of the dot product: exact for identical normals and accurate for
-/// small angles (acos loses half the digits near 1; the clamp of pitfall 13 is then moot).
+/// small angles (acos loses half the digits near 1; clamping its argument is then moot).
 fn angle(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }

@@ -1,4 +1,5 @@
-//! Enclosed volume (spec/smoothing.md §7.4 item 4): the divergence-theorem sum
+//! Enclosed volume (the volume criterion of the smoothing thesis (Svěchovský, *Vyhlazování polygonálních modelů*, FIT VUT Brno 2010,
+//! §4.2.4): the divergence-theorem sum
 //! V = 1/6 Σ a·(b×c), equal to the thesis' prism-against-a-plane construction for a closed,
 //! consistently oriented surface. For anything else the number means nothing, so, as the
 //! thesis prints "–", we report "not closed" with the reason.

@@ -1,6 +1,7 @@
-//! The recipe: which steps run on a scan, in which order, with which parameters
-//! (TOML, see DESIGN.md "Recipe file"). Unknown keys and kinds are errors that name the
-//! file, the line and the valid choices (serde + toml give us that for free).
+//! The recipe: which steps run on a scan, in which order, with which parameters (TOML; the
+//! README's recipe reference and docs/architecture.md "Parameters"). Unknown keys and kinds
+//! are errors that name the file, the line and the valid choices (serde + toml give us that
+//! for free).
 
 pub mod runner;
 pub mod step;

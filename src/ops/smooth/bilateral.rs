@@ -1,5 +1,5 @@
 //! Bilateral mesh denoising (thesis §3.5; the thesis gives no formula, so the update is
-//! Fleishman, Drori & Cohen-Or 2003, "DenoisePoint", spec §6.2):
+//! Fleishman, Drori & Cohen-Or 2003, "Bilateral mesh denoising", its "DenoisePoint"):
 //!
 //! ```text
 //! N(v) = { q_k : ‖v − q_k‖ < ρ },  t_k = ‖v − q_k‖,  h_k = ⟨n, v − q_k⟩
@@ -7,11 +7,11 @@
 //! v̂ = v − n · Σ w_k h_k / Σ w_k
 //! ```
 //!
-//! Choices where the thesis is silent (spec pitfall 5), each following Fleishman et al.
+//! Choices where the thesis is silent, each following Fleishman et al.
 //! unless said otherwise:
 //! - ρ = 2σ_c unless `radius` is given.
-//! - The candidates are the vertex's order-k neighbourhood (thesis §2.4.2, Fig. 2.1; spec §1
-//!   notes the thesis never says which order its BMDS used), `rings = 3` by default, of which
+//! - The candidates are the vertex's order-k neighbourhood (thesis §2.4.2, Fig. 2.1; the
+//!   thesis never says which order its BMDS used), `rings = 3` by default, of which
 //!   those inside the ρ-ball count. Gathering through the mesh rather than from all vertices
 //!   in space needs no spatial index, and a thin part (a lip, an ear) is not pulled towards
 //!   the surface across the gap. With the default ρ = 1.8 mean edges the 3-ring holds
@@ -20,7 +20,7 @@
 //!   iteration only filters them by distance, twice as fast as searching every time. The
 //!   order within a vertex's list (those inside the ball at the start first) only decides
 //!   how fast the filter skips the rest, and the order of the sums.
-//! - The vertex itself is left out of N(v) (spec §1 and pitfall 7); it would only add weight
+//! - The vertex itself is left out of N(v) (thesis §2.4.2); it would only add weight
 //!   1 with h = 0 and damp the move.
 //! - n is the area-weighted average of the 1-ring face normals, recomputed from the current
 //!   mesh before every iteration; updates are buffered.

@@ -2,8 +2,8 @@
 //! push the vertices back towards a blend of their original and previous positions, which
 //! cancels most of the shrinkage.
 //!
-//! Steps (a), (b) and (c) each finish for every vertex before the next starts (spec pitfall
-//! 1): (c) reads the neighbours' b_j. So HC is always buffered.
+//! Steps (a), (b) and (c) each finish for every vertex before the next starts:
+//! (c) reads the neighbours' b_j. So HC is always buffered.
 
 use super::laplace::pass_buffered;
 use super::{CHUNK, HcParams, SmoothGraph};
@@ -18,7 +18,7 @@ pub(super) fn run(
     iterations: u32,
 ) -> u32 {
     let n = positions.len();
-    // o: the noisy input of this run, fixed for all iterations (spec §0).
+    // o: the noisy input of this run, fixed for all iterations.
     let original = positions.clone();
     let mut p = vec![DVec3::ZERO; n];
     let mut b = vec![DVec3::ZERO; n];

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 /// it is Taubin's inflating step, Eq. 3.7). A vertex with an empty row keeps `q_i`.
 ///
 /// Each output depends only on the snapshot `q`, so the result is the same for any thread
-/// count (the thesis' "sequential" mode, spec §2).
+/// count (the thesis' "sequential" mode, thesis §3.1).
 pub(super) fn pass_buffered(
     graph: &SmoothGraph,
     weights: Option<&[f64]>,
@@ -36,7 +36,7 @@ pub(super) fn pass_buffered(
 }
 
 /// One in-place (Gauss–Seidel) pass in vertex order: each vertex already sees the moved
-/// positions of the vertices before it (the thesis' "simultaneous" mode, spec §2). Sequential.
+/// positions of the vertices before it (the thesis' "simultaneous" mode, thesis §3.1). Sequential.
 pub(super) fn pass_in_place(
     graph: &SmoothGraph,
     weights: Option<&[f64]>,
@@ -61,7 +61,7 @@ pub(super) fn run(
     iterations: u32,
     update: Update,
 ) -> u32 {
-    // Eq. (3.5): o is the noisy input of this run, fixed for all iterations (spec §0).
+    // Eq. (3.5): o is the noisy input of this run, fixed for all iterations.
     let original = (params.anchor == LaplaceAnchor::Original).then(|| positions.clone());
     let mut weights = graph.weight_buffer(params.weights);
     let mut scratch = match update {

@@ -1,14 +1,15 @@
 //! The `smooth` step: the four vertex-moving denoising filters compared in the smoothing
-//! thesis (spec/smoothing.md): Laplace (§3.2), Laplace-HC (§3.3, Vollmer et al. 1999),
+//! thesis (R. Svěchovský, *Vyhlazování polygonálních modelů* (Polygonal Models
+//! Smoothing), bachelor's thesis, FIT VUT Brno, 2010; § are its sections): Laplace (§3.2), Laplace-HC (§3.3, Vollmer et al. 1999),
 //! Taubin λ|μ (§3.4, Taubin 1995) and bilateral mesh denoising (§3.5, Fleishman et al. 2003);
 //! and, beyond the thesis, normal filtering (`normal-filter`, issue #26; see its module).
 //!
-//! Only positions move (spec §1: "none of the filters changes topology"): wedges, texture
+//! Only positions move (none of the thesis' filters changes topology): wedges, texture
 //! coordinates and seams are untouched, so seams stay closed by construction. Stored
 //! normals become stale; a recipe recomputes them with a later `normals` step.
 //!
 //! Updates are buffered by default (every vertex computed from the same snapshot, then all
-//! replaced; spec §2, the thesis' "sequential" mode, Jacobi style). That is naturally
+//! replaced; the thesis' "sequential" mode of §3.1, Jacobi style). That is naturally
 //! deterministic and parallel: each vertex's new position depends only on the snapshot and
 //! sums over its CSR row in a fixed order, whatever the thread count. `update = "in-place"`
 //! (Gauss–Seidel in vertex order, the thesis' "simultaneous" mode) is offered for Laplace and
@@ -31,7 +32,7 @@ use serde::{Deserialize, Serialize};
 pub use graph::SmoothGraph;
 pub use normal_filter::{NormalFilterParams, NormalVariant};
 
-/// How a new position is stored (spec §2).
+/// How a new position is stored (thesis §3.1).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Update {
@@ -44,8 +45,8 @@ pub enum Update {
     InPlace,
 }
 
-/// What happens to vertices on an open border (spec pitfall 9; the thesis' models are
-/// closed): `fixed`, the default (a scan's border is usually a cut, the crop step or the edge
+/// What happens to vertices on an open border (the thesis' models are closed and it does
+/// not say): `fixed`, the default (a scan's border is usually a cut, the crop step or the edge
 /// of the scanner's view, whose outline should stay where it is, and the umbrella operator
 /// would otherwise pull every border inward), or `curve` (recorded as `free`: border
 /// vertices average their neighbours along border edges only, as MeshLab/VCG does, so the
@@ -71,7 +72,7 @@ pub enum Weights {
 #[serde(rename_all = "kebab-case")]
 pub enum LaplaceAnchor {
     /// Eq. (3.3): p = (1−λ) q + λ·avg(q). With λ = 1 this is Eq. (3.4), plain neighbour
-    /// averaging (same code path; pitfall 17 says the results must be identical).
+    /// averaging (same code path, so the two give identical results).
     #[default]
     Current,
     /// Eq. (3.5), after Vollmer et al.: p = (1−λ) o + λ·avg(q), pulled towards the original
@@ -79,7 +80,7 @@ pub enum LaplaceAnchor {
     Original,
 }
 
-/// What one Taubin `iteration` is (spec §5 and pitfall 4: tools disagree).
+/// What one Taubin `iteration` is (thesis §3.4, §5.3; tools disagree).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum TaubinCount {
@@ -97,7 +98,7 @@ pub enum TaubinCount {
 #[serde(rename_all = "kebab-case")]
 pub enum LengthUnits {
     /// Multiples of the mesh's mean edge length, measured when the step starts. The default:
-    /// the thesis' σ's are absolute lengths in its models' units (pitfall 5), which do not
+    /// the thesis' σ's are absolute lengths in its models' units (Table A.2), which do not
     /// transfer to a scan in millimetres.
     #[default]
     MeanEdge,
@@ -114,7 +115,7 @@ pub struct LaplaceParams {
 }
 
 /// Laplace-HC (§3.3, Eq. 3.6). Table A.2: λ = 1.0, α = 0.001, β = 0.5, 8 iterations.
-/// (§5.2 says α = 0.0; Table A.2, the "presented results", says 0.001 — pitfall 2.)
+/// (§5.2 says α = 0.0; Table A.2, the "presented results", says 0.001: the defaults take the table.)
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HcParams {
     pub lambda: f64,
@@ -132,12 +133,11 @@ pub struct TaubinParams {
     pub weights: Weights,
 }
 
-/// Bilateral mesh denoising (§3.5; the update is Fleishman et al.'s "DenoisePoint", spec
-/// §6.2).
+/// Bilateral mesh denoising (§3.5; the update is Fleishman et al. 2003's "DenoisePoint").
 ///
 /// Table A.2 gives σ_c = 0.02, σ_s = 0.01 and 3 iterations for the bunny (the Stanford
 /// model closest to a lab scan). Those are absolute lengths in the thesis' bunny, which was
-/// scaled to a volume of 2.5482 (spec §8.1) **[derived]**: the same zipper bunny
+/// scaled to a volume of 2.5482 (thesis Table A.1), derived here:: the same zipper bunny
 /// (`bun_zipper.ply`, 35,947 vertices as in Table A.1; mean edge 0.001 471, volume
 /// 0.000 770 with its base holes) scaled by 14.90 has a mean edge of 0.0219, so
 /// σ_c = 0.91 and σ_s = 0.46 mean edges (and the thesis' noise, 0.2 mean edges, is 0.0044,
@@ -387,7 +387,7 @@ impl LaplaceParams {
             anchor: f.anchor.unwrap_or(d.anchor),
             weights: f.weights.unwrap_or(d.weights),
         };
-        // §3.2 states λ ∈ (0,1) but uses λ = 1 itself (Eq. 3.4, HC): accept (0,1] (pitfall 3).
+        // §3.2 states λ ∈ (0,1) but uses λ = 1 itself (Eq. 3.4, HC): accept (0,1].
         unit_interval("lambda", p.lambda, true)?;
         Ok((SmoothMethod::Laplace(p), Self::ITERATIONS))
     }
@@ -476,8 +476,8 @@ fn check_update(method: MethodName, update: Update) -> Result<(), String> {
     match method {
         // Pitfall 1: HC needs b of all neighbours, so its three steps must each finish for
         // every vertex before the next starts.
-        MethodName::Hc => Err("method = \"hc\" needs update = \"buffered\" (its three steps each read the previous step's results for all neighbours; spec pitfall 1)".into()),
-        // Fleishman et al. compute every vertex from one snapshot (spec §6.2).
+        MethodName::Hc => Err("method = \"hc\" needs update = \"buffered\" (its three steps each read the previous step's results for all neighbours)".into()),
+        // Fleishman et al. 2003 compute every vertex from one snapshot ("DenoisePoint").
         MethodName::Bilateral | MethodName::NormalFilter => Err("method = \"bilateral\" needs update = \"buffered\" (Fleishman et al. denoise every vertex from one snapshot, with normals of that snapshot)".into()),
         MethodName::Laplace | MethodName::Taubin => Ok(()),
     }
@@ -603,7 +603,7 @@ pub struct SmoothReport {
     /// Vertices used by no triangle (never moved).
     pub isolated_vertices: usize,
     /// Bilateral only: vertex updates skipped because the neighbourhood was empty or every
-    /// weight underflowed (spec §6.2: leave the vertex where it is).
+    /// weight underflowed (as Fleishman et al.'s "DenoisePoint": the vertex stays where it is).
     pub empty_neighbourhoods: u64,
     /// Normal filter only: vertex updates undone because a triangle would have flipped
     /// against the input.

@@ -1,7 +1,7 @@
 //! Taubin's λ|μ low-pass filter (thesis §3.4; Taubin 1995): a shrinking Laplace pass with
 //! λ > 0 (Eq. 3.3) alternating with an inflating pass with μ < −λ (Eq. 3.7).
 //!
-//! Iteration accounting differs between tools (spec §5, pitfall 4). With
+//! Iteration accounting differs between tools (thesis §3.4 and §5.3). With
 //! `count = "pairs"` (the default, as in Taubin's paper and MeshLab) one iteration is one λ
 //! pass followed by one μ pass. With `count = "passes"` one iteration is one pass,
 //! alternating and starting with λ: the thesis' count, where "13 iterations" means 7 λ and

@@ -222,7 +222,7 @@ fn laplace_shrinks_a_sphere_taubin_and_hc_nearly_do_not() {
 
 #[test]
 fn laplace_eq_3_4_is_eq_3_3_with_lambda_one() {
-    // Plain neighbour averaging by hand against the λ = 1 run (pitfall 17).
+    // Plain neighbour averaging by hand against the λ = 1 run (Eq. 3.4 is Eq. 3.3 with λ = 1).
     let mut m = noisy_sphere();
     let topo = m.topology();
     let expected: Vec<DVec3> = (0..m.positions.len() as u32)
