@@ -95,13 +95,7 @@ pub fn uv_sphere(r: f64, rings: usize, segments: usize) -> Mesh {
                 .push([ring(i, j), ring(i + 1, j + 1), ring(i, j + 1)]);
         }
     }
-    m.wedges = (0..m.positions.len() as Index)
-        .map(|v| Wedge {
-            vertex: v,
-            texcoord: None,
-            normal: None,
-        })
-        .collect();
+    plain_wedges(&mut m);
     m
 }
 

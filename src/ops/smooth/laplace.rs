@@ -64,32 +64,50 @@ pub(super) fn run(
     // Eq. (3.5): o is the noisy input of this run, fixed for all iterations.
     let original = (params.anchor == LaplaceAnchor::Original).then(|| positions.clone());
     let mut weights = graph.weight_buffer(params.weights);
-    let mut scratch = match update {
-        Update::Buffered => vec![DVec3::ZERO; positions.len()],
-        Update::InPlace => Vec::new(),
-    };
+    let mut pass = Pass::new(update, positions.len());
     for _ in 0..iterations {
         graph.refresh_weights(&mut weights, positions);
-        match update {
-            Update::Buffered => {
-                pass_buffered(
-                    graph,
-                    weights.as_deref(),
-                    positions,
-                    original.as_deref(),
-                    params.lambda,
-                    &mut scratch,
-                );
-                std::mem::swap(positions, &mut scratch);
-            }
-            Update::InPlace => pass_in_place(
-                graph,
-                weights.as_deref(),
-                positions,
-                original.as_deref(),
-                params.lambda,
-            ),
-        }
+        pass.run(
+            graph,
+            weights.as_deref(),
+            positions,
+            original.as_deref(),
+            params.lambda,
+        );
     }
     iterations
+}
+
+/// One umbrella pass in either update mode, with the buffer a buffered pass writes into
+/// (kept across passes; Laplace and Taubin share it).
+pub(super) struct Pass {
+    update: Update,
+    scratch: Vec<DVec3>,
+}
+
+impl Pass {
+    pub(super) fn new(update: Update, vertices: usize) -> Pass {
+        let scratch = match update {
+            Update::Buffered => vec![DVec3::ZERO; vertices],
+            Update::InPlace => Vec::new(),
+        };
+        Pass { update, scratch }
+    }
+
+    pub(super) fn run(
+        &mut self,
+        graph: &SmoothGraph,
+        weights: Option<&[f64]>,
+        positions: &mut Vec<DVec3>,
+        anchor: Option<&[DVec3]>,
+        factor: f64,
+    ) {
+        match self.update {
+            Update::Buffered => {
+                pass_buffered(graph, weights, positions, anchor, factor, &mut self.scratch);
+                std::mem::swap(positions, &mut self.scratch);
+            }
+            Update::InPlace => pass_in_place(graph, weights, positions, anchor, factor),
+        }
+    }
 }

@@ -7,7 +7,7 @@
 //! alternating and starting with λ: the thesis' count, where "13 iterations" means 7 λ and
 //! 6 μ passes, ending on λ.
 
-use super::laplace::{pass_buffered, pass_in_place};
+use super::laplace::Pass;
 use super::{SmoothGraph, TaubinCount, TaubinParams, Update};
 use glam::DVec3;
 
@@ -24,31 +24,11 @@ pub(super) fn run(
         TaubinCount::Passes => iterations,
     };
     let mut weights = graph.weight_buffer(params.weights);
-    let mut scratch = match update {
-        Update::Buffered => vec![DVec3::ZERO; positions.len()],
-        Update::InPlace => Vec::new(),
-    };
-    for pass in 0..passes {
-        let factor = if pass % 2 == 0 {
-            params.lambda
-        } else {
-            params.mu
-        };
+    let mut pass = Pass::new(update, positions.len());
+    for k in 0..passes {
+        let factor = if k % 2 == 0 { params.lambda } else { params.mu };
         graph.refresh_weights(&mut weights, positions);
-        match update {
-            Update::Buffered => {
-                pass_buffered(
-                    graph,
-                    weights.as_deref(),
-                    positions,
-                    None,
-                    factor,
-                    &mut scratch,
-                );
-                std::mem::swap(positions, &mut scratch);
-            }
-            Update::InPlace => pass_in_place(graph, weights.as_deref(), positions, None, factor),
-        }
+        pass.run(graph, weights.as_deref(), positions, None, factor);
     }
     passes
 }
