@@ -1,7 +1,7 @@
 //! Issue #5's guarantees on the real textured scans, at 26,000 and 5,000 faces, for face
 //! and edge collapse: no new non-manifold edges or vertices, no new border edges (cracks),
 //! no flipped or zero-area faces, seams stay seams (seam vertices on input seam edges),
-//! texture coordinates stay in their chart, border loops kept (`boundary = "keep"`), the
+//! texture coordinates stay in their chart, border loops kept (`boundary = "fixed"`), the
 //! target reached within 4 faces unless every remaining collapse was refused (then the
 //! refusals are reported), and every output triangle knows its input triangle.
 

@@ -16,7 +16,7 @@ pub enum VClass {
     /// slides along its seam, and both sides of the seam move together.
     Seam = 2,
     /// Never moves: non-manifold, seam junctions and ends, seams meeting a border, borders
-    /// under `boundary = "keep"`.
+    /// under `boundary = "fixed"`.
     Fixed = 3,
 }
 

@@ -59,7 +59,7 @@ impl Method {
 #[serde(rename_all = "lowercase")]
 pub enum Halves {
     /// For meshes of at least [`halves::AUTO_MIN_FACES`] triangles, when the step allows it
-    /// (edge collapse, `boundary = "keep"`, a `target_faces` and no `max_error`).
+    /// (edge collapse, `boundary = "fixed"`, a `target_faces` and no `max_error`).
     #[default]
     Auto,
     /// Whenever the step allows it (as above, and more than 3 × the target triangles).
