@@ -530,7 +530,7 @@ fn a_bad_store_url_or_unreachable_server_is_a_clear_error() {
 #[test]
 #[ignore = "prints measurements for docs/scale-out.md; run by hand"]
 fn queue_figures() {
-    let server = PgServer::start();
+    let server = PgServer::start_durable();
     queue_overhead(&server);
     for hosts in 1..=3 {
         claims_per_second(&server, hosts);
@@ -612,6 +612,10 @@ fn queue_overhead(server: &PgServer) {
         ),
     ];
     let owner = Owner::current();
+    let mut stats = server.client("overhead");
+    stats
+        .batch_execute("CREATE EXTENSION pg_stat_statements")
+        .unwrap();
     for (name, config) in stores {
         let mut q = Queue::open(&config, &dir.path().join("s.sqlite")).unwrap();
         let fence = q.fence();
@@ -636,6 +640,21 @@ fn queue_overhead(server: &PgServer) {
             median(run)
         );
     }
+    // Statements the server ran for those 400 jobs, per job (transactions included).
+    let r = stats
+        .query_one(
+            "SELECT sum(calls)::bigint, sum(calls) FILTER (WHERE query ILIKE 'begin%' OR query ILIKE 'commit%')::bigint
+             FROM pg_stat_statements s JOIN pg_database d ON d.oid = s.dbid
+             WHERE d.datname = 'overhead' AND query NOT ILIKE '%pg_stat_statements%'",
+            &[],
+        )
+        .unwrap();
+    let (all, tx): (Option<i64>, Option<i64>) = (r.get(0), r.get(1));
+    println!(
+        "FIGURE statements per job on postgres: {:.1} (of which BEGIN/COMMIT {:.1}), migrations included",
+        all.unwrap_or(0) as f64 / 400.0,
+        tx.unwrap_or(0) as f64 / 400.0
+    );
 }
 
 fn claims_per_second(server: &PgServer, hosts: usize) {

@@ -13,6 +13,8 @@ pub struct PgServer {
     pub port: u16,
     bin: PathBuf,
     as_nobody: bool,
+    /// Extra `-c` settings of the server (after the defaults).
+    settings: String,
 }
 
 fn bindir() -> PathBuf {
@@ -53,7 +55,19 @@ fn free_port() -> u16 {
 }
 
 impl PgServer {
+    /// A server for correctness tests: `fsync=off` (a crash of the test machine loses
+    /// nothing the tests need).
     pub fn start() -> PgServer {
+        PgServer::start_with("-c fsync=off")
+    }
+
+    /// A server as in production (`fsync` and `synchronous_commit` on) with
+    /// `pg_stat_statements` loaded, for the figures.
+    pub fn start_durable() -> PgServer {
+        PgServer::start_with("-c shared_preload_libraries=pg_stat_statements")
+    }
+
+    fn start_with(settings: &str) -> PgServer {
         let bin = bindir();
         let dir = tempfile::Builder::new()
             .prefix("pg")
@@ -72,6 +86,7 @@ impl PgServer {
             dir,
             bin,
             as_nobody,
+            settings: settings.to_string(),
         };
         server.run(
             "initdb",
@@ -118,9 +133,10 @@ impl PgServer {
 
     fn ctl_start(&self) {
         let opts = format!(
-            "-k {} -p {} -c listen_addresses='' -c fsync=off -c max_connections=60",
+            "-k {} -p {} -c listen_addresses='' -c max_connections=60 {}",
             self.dir.path().display(),
-            self.port
+            self.port,
+            self.settings
         );
         let log = self.dir.path().join("server.log");
         self.run(
