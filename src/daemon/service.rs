@@ -816,8 +816,14 @@ impl Service {
             return Err(error);
         }
         self.busy_pause = (self.busy_pause * 2).clamp(BUSY_PAUSE_MIN, BUSY_PAUSE_MAX);
+        let why = match &error {
+            ServiceError::Store(StoreError::Postgres { .. }) => {
+                "the database server is out of reach"
+            }
+            _ => "another process holds the database's write lock",
+        };
         tracing::warn!(
-            "{error}: another process holds the database's write lock; trying again in {:.1} s",
+            "{error}: {why}; trying again in {:.1} s",
             self.busy_pause.as_secs_f64()
         );
         self.notifier.watchdog_ping();
