@@ -197,6 +197,11 @@ pub struct DaemonConfig {
     /// secret that has no business in the audit log.
     #[serde(default, skip_serializing)]
     pub web: crate::web::WebConfig,
+    /// The job queue and audit log (`[store]`): absent, SQLite in `state_dir`; a
+    /// PostgreSQL URL, a queue shared with other hosts (docs/scale-out.md). Not part of
+    /// the hash: where the queue lives does not change what a job produces.
+    #[serde(default, skip_serializing)]
+    pub store: crate::store::StoreConfig,
 }
 
 impl DaemonConfig {
@@ -219,6 +224,7 @@ impl DaemonConfig {
             job_memory_mb: 0,
             job_cpu_secs: 0,
             web: crate::web::WebConfig::default(),
+            store: crate::store::StoreConfig::default(),
             watch: vec![WatchConfig {
                 path: PathBuf::from("./inbox"),
                 output: PathBuf::from("./outbox"),
@@ -315,8 +321,14 @@ impl DaemonConfig {
         self.check_numbers(&mut problems);
         problems.extend(self.limits.validate());
         problems.extend(self.web.validate());
-        if self.watch.is_empty() {
+        problems.extend(self.store.validate());
+        // On a shared queue a host may only work (no watched folders of its own).
+        if self.watch.is_empty() && !self.store.is_shared() {
             problems.push("no [[watch]] folder configured".into());
+        }
+        if self.web.enabled && self.store.is_shared() {
+            problems
+                .push("[web] reads the SQLite store only; turn it off with a [store] url".into());
         }
         self.check_dir("state_dir", &self.state_dir, &mut problems);
         for (i, w) in self.watch.iter().enumerate() {

@@ -6,7 +6,7 @@ use super::service::{self, ServiceError};
 use super::worker_process::{self, WorkerArgs};
 use crate::config::{ConfigError, DaemonConfig};
 use crate::store::query::{HistoryFilter, HistoryRow, STATES};
-use crate::store::{Store, StoreError, now_ms};
+use crate::store::{Queue, StoreError, now_ms};
 use clap::Subcommand;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -34,6 +34,9 @@ pub enum ServiceCommand {
     History {
         #[arg(long)]
         config: Option<PathBuf>,
+        /// A PostgreSQL store to read instead of the configuration's (`postgres://…`).
+        #[arg(long, value_name = "URL")]
+        store: Option<String>,
         /// Only jobs queued since: a duration back from now (90s, 30m, 12h, 7d) or a UTC date/time.
         #[arg(long)]
         since: Option<String>,
@@ -41,7 +44,7 @@ pub enum ServiceCommand {
         /// (scans not yet jobs: a member missing or unreadable).
         #[arg(long)]
         status: Option<String>,
-        /// Only inputs whose path matches this glob (SQLite GLOB on root/relative path).
+        /// Only inputs whose path matches this glob (SQLite's GLOB on root/relative path, on either store).
         #[arg(long)]
         input: Option<String>,
         /// Print JSON (one array).
@@ -59,12 +62,18 @@ pub enum ServiceCommand {
         job: i64,
         #[arg(long)]
         config: Option<PathBuf>,
+        /// A PostgreSQL store to read instead of the configuration's (`postgres://…`).
+        #[arg(long, value_name = "URL")]
+        store: Option<String>,
     },
     /// Put a job back in the queue (a fresh attempt count; its output is published again, with a suffix if needed).
     Requeue {
         job: i64,
         #[arg(long)]
         config: Option<PathBuf>,
+        /// A PostgreSQL store to read instead of the configuration's (`postgres://…`).
+        #[arg(long, value_name = "URL")]
+        store: Option<String>,
     },
     /// Check the daemon configuration; exit 78 if it is not valid.
     ValidateConfig {
@@ -103,6 +112,15 @@ pub enum DbCommand {
     /// Copy the database with SQLite's online backup (safe while the daemon runs), then check the copy.
     Backup {
         file: PathBuf,
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Copy this host's SQLite history (jobs, inputs, outputs, attempts, step timings, waiting
+    /// scans) into a PostgreSQL store; refuses a store that already holds jobs.
+    Migrate {
+        /// The PostgreSQL store (`postgres://…`); created and migrated if empty.
+        #[arg(long, value_name = "URL")]
+        to: String,
         #[arg(long)]
         config: Option<PathBuf>,
     },
@@ -165,6 +183,7 @@ impl ServiceCommand {
             }
             ServiceCommand::History {
                 config,
+                store,
                 since,
                 status,
                 input,
@@ -186,17 +205,22 @@ impl ServiceCommand {
                     limit: *limit,
                     format,
                 };
-                report(history(config.as_deref(), &args, &mut out), &mut err)
+                let at = StoreAt::new(config, store);
+                report(history(&at, &args, &mut out), &mut err)
             }
-            ServiceCommand::Show { job, config } => {
-                report(show(config.as_deref(), *job, &mut out), &mut err)
+            ServiceCommand::Show { job, config, store } => {
+                report(show(&StoreAt::new(config, store), *job, &mut out), &mut err)
             }
-            ServiceCommand::Requeue { job, config } => {
-                report(requeue(config.as_deref(), *job, &mut out), &mut err)
-            }
+            ServiceCommand::Requeue { job, config, store } => report(
+                requeue(&StoreAt::new(config, store), *job, &mut out),
+                &mut err,
+            ),
             ServiceCommand::Db {
                 command: DbCommand::Backup { file, config },
             } => report(db_backup(config.as_deref(), file, &mut out), &mut err),
+            ServiceCommand::Db {
+                command: DbCommand::Migrate { to, config },
+            } => report(db_migrate(config.as_deref(), to, &mut out), &mut err),
         }
     }
 }
@@ -215,6 +239,8 @@ impl From<StoreError> for CliError {
             StoreError::TooNew { .. } => exit::CONFIG,
             StoreError::NoSuchJob(_) => exit::USAGE,
             StoreError::WrongState { .. } => exit::TEMP_FAIL,
+            StoreError::Conn(_) => exit::CONFIG,
+            StoreError::Postgres { .. } if e.is_busy() => exit::UNAVAILABLE,
             StoreError::Sqlite { source, .. }
                 if matches!(
                     source.sqlite_error_code(),
@@ -280,7 +306,9 @@ pub fn run_daemon(config: Option<&Path>, err: &mut dyn Write) -> u8 {
             match e {
                 ServiceError::Config { .. } => exit::CONFIG,
                 ServiceError::Locked(_) => exit::TEMP_FAIL,
-                ServiceError::Store(StoreError::TooNew { .. }) => exit::CONFIG,
+                ServiceError::Store(StoreError::TooNew { .. } | StoreError::Conn(_)) => {
+                    exit::CONFIG
+                }
                 ServiceError::Store(_) => exit::UNAVAILABLE,
                 ServiceError::Io { .. } => exit::CANT_CREATE,
             }
@@ -310,9 +338,29 @@ pub fn validate_config(config: Option<&Path>, out: &mut dyn Write, err: &mut dyn
     }
 }
 
-fn open_store(config: Option<&Path>, write: bool) -> Result<Store, CliError> {
-    let (cfg, _) = DaemonConfig::locate(config)?;
-    Ok(Store::open_existing(&cfg.database_path(), write)?)
+/// Which store a command reads: the configuration's, or `--store URL`.
+pub struct StoreAt<'a> {
+    pub config: Option<&'a Path>,
+    pub url: Option<&'a str>,
+}
+
+impl<'a> StoreAt<'a> {
+    fn new(config: &'a Option<PathBuf>, url: &'a Option<String>) -> StoreAt<'a> {
+        StoreAt {
+            config: config.as_deref(),
+            url: url.as_deref(),
+        }
+    }
+}
+
+fn open_store(at: &StoreAt<'_>, write: bool) -> Result<Queue, CliError> {
+    let (cfg, _) = DaemonConfig::locate(at.config)?;
+    Ok(Queue::open_existing(
+        &cfg.store,
+        at.url,
+        &cfg.database_path(),
+        write,
+    )?)
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -340,11 +388,7 @@ fn csv_field(s: &str) -> String {
 }
 
 /// `scanmill history`.
-pub fn history(
-    config: Option<&Path>,
-    args: &HistoryArgs,
-    out: &mut dyn Write,
-) -> Result<(), CliError> {
+pub fn history(at: &StoreAt<'_>, args: &HistoryArgs, out: &mut dyn Write) -> Result<(), CliError> {
     if let Some(s) = &args.status
         && !STATES.contains(&s.as_str())
     {
@@ -353,7 +397,7 @@ pub fn history(
             message: format!("--status {s}: expected one of {}", STATES.join(", ")),
         });
     }
-    let store = open_store(config, false)?;
+    let mut store = open_store(at, false)?;
     let since_ms = match &args.since {
         Some(s) => Some(store.parse_since(s, now_ms()).ok_or_else(|| CliError {
             code: exit::USAGE,
@@ -403,6 +447,32 @@ pub fn history(
     Ok(())
 }
 
+/// `scanmill db migrate --to URL`: copies this host's SQLite history into PostgreSQL.
+pub fn db_migrate(config: Option<&Path>, to: &str, out: &mut dyn Write) -> Result<(), CliError> {
+    let (cfg, _) = DaemonConfig::locate(config)?;
+    let source = crate::store::Store::open_existing(&cfg.database_path(), false)?;
+    let info = crate::store::pg::ConnInfo::new(to, cfg.store.password_file.as_deref())
+        .map_err(StoreError::from)?;
+    let shown = info.shown.clone();
+    let mut target = crate::store::pg::PgStore::open(
+        info,
+        cfg.store.lease(),
+        std::time::Duration::from_secs(5),
+    )?;
+    let copied = crate::store::pg::copy::from_sqlite(&source, &mut target).map_err(|e| {
+        let code = match &e {
+            crate::store::pg::copy::CopyError::NotEmpty { .. } => exit::CANT_CREATE,
+            crate::store::pg::copy::CopyError::Store(_) => exit::FAILURE,
+        };
+        CliError {
+            code,
+            message: e.to_string(),
+        }
+    })?;
+    writeln!(out, "{} -> {shown}: {copied}", source.path().display())?;
+    Ok(())
+}
+
 fn write_history_text(rows: &[HistoryRow], out: &mut dyn Write) -> std::io::Result<()> {
     writeln!(
         out,
@@ -437,8 +507,8 @@ fn write_history_text(rows: &[HistoryRow], out: &mut dyn Write) -> std::io::Resu
 }
 
 /// `scanmill show JOB`: everything recorded, as pretty JSON.
-pub fn show(config: Option<&Path>, job: i64, out: &mut dyn Write) -> Result<(), CliError> {
-    let store = open_store(config, false)?;
+pub fn show(at: &StoreAt<'_>, job: i64, out: &mut dyn Write) -> Result<(), CliError> {
+    let mut store = open_store(at, false)?;
     let value = store.show(job)?;
     serde_json::to_writer_pretty(&mut *out, &value).map_err(std::io::Error::other)?;
     writeln!(out)?;
@@ -446,8 +516,8 @@ pub fn show(config: Option<&Path>, job: i64, out: &mut dyn Write) -> Result<(), 
 }
 
 /// `scanmill requeue JOB`.
-pub fn requeue(config: Option<&Path>, job: i64, out: &mut dyn Write) -> Result<(), CliError> {
-    let mut store = open_store(config, true)?;
+pub fn requeue(at: &StoreAt<'_>, job: i64, out: &mut dyn Write) -> Result<(), CliError> {
+    let mut store = open_store(at, true)?;
     let was = store.requeue(job)?;
     writeln!(out, "job {job}: {was} -> queued")?;
     Ok(())
@@ -461,7 +531,14 @@ pub fn db_backup(config: Option<&Path>, file: &Path, out: &mut dyn Write) -> Res
             message: format!("{}: exists; not overwriting", file.display()),
         });
     }
-    let store = open_store(config, false)?;
+    let (cfg, _) = DaemonConfig::locate(config)?;
+    if cfg.store.is_shared() {
+        return Err(CliError {
+            code: exit::USAGE,
+            message: "the store is PostgreSQL: back it up with pg_dump (docs/scale-out.md)".into(),
+        });
+    }
+    let store = crate::store::Store::open_existing(&cfg.database_path(), false)?;
     store.backup(file)?;
     writeln!(
         out,

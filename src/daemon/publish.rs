@@ -67,6 +67,12 @@ pub fn rename_no_replace(from: &Path, to: &Path) -> std::io::Result<()> {
 /// Removes every leftover staging folder of an output root (at start-up: the daemon holds
 /// the state lock, and an output root belongs to one daemon).
 pub fn clean_staging(output_root: &Path) -> usize {
+    clean_staging_older(output_root, std::time::Duration::ZERO)
+}
+
+/// Removes the staging folders of an output root last changed at least `age` ago (an
+/// output root shared by several hosts: younger ones may be another host's attempt).
+pub fn clean_staging_older(output_root: &Path, age: std::time::Duration) -> usize {
     let staging = output_root.join(STAGING_DIR);
     let Ok(entries) = std::fs::read_dir(&staging) else {
         return 0;
@@ -74,6 +80,15 @@ pub fn clean_staging(output_root: &Path) -> usize {
     let mut n = 0;
     for e in entries.flatten() {
         let p = e.path();
+        let young = e
+            .metadata()
+            .and_then(|m| m.modified())
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_none_or(|elapsed| elapsed < age);
+        if !age.is_zero() && young {
+            continue;
+        }
         let removed = if p.is_dir() {
             std::fs::remove_dir_all(&p)
         } else {

@@ -18,8 +18,9 @@ use super::systemd::{Notifier, StateLock, free_bytes};
 use super::worker::{self, JobResult, JobSpec, PublishGate};
 use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
+use crate::store::pg::Fence;
 use crate::store::{
-    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, NewJob, Owner, RetryPolicy, Store,
+    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, NewJob, Owner, Queue, RetryPolicy,
     StoreError, now_ms,
 };
 use std::collections::HashMap;
@@ -72,7 +73,12 @@ struct Running {
 struct Service {
     config: DaemonConfig,
     config_hash: String,
-    store: Store,
+    store: Queue,
+    /// The shared queue's fence (PostgreSQL): job threads publish through it.
+    fence: Option<Arc<Fence>>,
+    /// When the shared queue's leases are renewed next, and expired ones looked for.
+    next_heartbeat: Instant,
+    next_rescue: Instant,
     tracker: Tracker,
     roots: Vec<RootRuntime>,
     owner: Owner,
@@ -163,6 +169,9 @@ pub fn run(config: DaemonConfig, origin: ConfigSource) -> Result<(), ServiceErro
     let (hints_tx, hints_rx) = mpsc::channel(256);
     let service = Service {
         config_hash: config.hash(),
+        fence: store.fence().map(Arc::new),
+        next_heartbeat: Instant::now(),
+        next_rescue: Instant::now(),
         config,
         store,
         tracker,
@@ -206,8 +215,9 @@ fn create_missing_dirs(config: &DaemonConfig) -> Result<(), ServiceError> {
 
 /// Opens the job store, queues again the jobs a previous process left running, and reads
 /// the input sets it has recorded.
-fn open_store(config: &DaemonConfig) -> Result<(Store, Known), ServiceError> {
-    let mut store = Store::open(&config.database_path())?;
+fn open_store(config: &DaemonConfig) -> Result<(Queue, Known), ServiceError> {
+    let mut store = Queue::open(&config.store, &config.database_path())?;
+    tracing::info!(store = %store.describe(), "job store open");
     let requeued = store.recover_running()?;
     if requeued > 0 {
         tracing::warn!(
@@ -238,7 +248,14 @@ fn watched_roots(
         })?;
         let path = absolute(&w.path);
         let output = absolute(&w.output);
-        let removed = super::publish::clean_staging(&output);
+        // A shared output folder holds other hosts' staging too: only what no attempt can
+        // still be writing is removed.
+        let removed = if config.store.is_shared() {
+            let age = secs(config.job_timeout_secs) + SUPERVISOR_GRACE;
+            super::publish::clean_staging_older(&output, age)
+        } else {
+            super::publish::clean_staging(&output)
+        };
         if removed > 0 {
             tracing::info!(removed, output = %output.display(), "removed stale temporaries");
         }
@@ -397,6 +414,7 @@ impl Service {
     /// what can run, notice timeouts, tell systemd.
     fn tend_queue(&mut self) -> Result<(), ServiceError> {
         self.record_unrecorded()?;
+        self.tend_leases()?;
         let version = self.store.data_version()?;
         let due = self.next_run_after.is_some_and(|t| t <= now_ms());
         if self.work_maybe || due || version != self.data_version || self.paused.is_some() {
@@ -408,6 +426,44 @@ impl Service {
         }
         self.check_timeouts()?;
         self.update_status()
+    }
+
+    /// The shared queue's leases: renew ours every third of the lease (an attempt that lost
+    /// its lease is stopped; the fence keeps it from publishing anyway), and requeue jobs
+    /// whose lease passed every `rescue_secs`.
+    fn tend_leases(&mut self) -> Result<(), ServiceError> {
+        let Some(lease) = self.store.lease() else {
+            return Ok(());
+        };
+        let now = Instant::now();
+        if now >= self.next_heartbeat {
+            let tokens: Vec<i64> = self.running.values().map(|r| r.job.attempt_id).collect();
+            let held = self.store.heartbeat(&tokens)?;
+            self.next_heartbeat = now + lease / 3;
+            let lost: Vec<i64> = self
+                .running
+                .iter()
+                .filter(|(_, r)| !held.contains(&r.job.attempt_id))
+                .map(|(id, _)| *id)
+                .collect();
+            for id in lost {
+                if self.running[&id].gate.abandon() {
+                    let r = self.running.remove(&id).expect("present");
+                    let f = Finish::Interrupted {
+                        reason: "lease lost".into(),
+                    };
+                    let state = self.store.finish(&r.job, &f, self.retry(), 0.0)?;
+                    tracing::warn!(job_id = id, state = ?state, "lease lost: another host has the job; stopped and fenced out");
+                }
+            }
+        }
+        if now >= self.next_rescue {
+            self.next_rescue = now + secs(self.config.store.rescue_secs);
+            if self.store.rescue()? > 0 {
+                self.work_maybe = true;
+            }
+        }
+        Ok(())
     }
 
     /// The watched folders' side of one turn: walk the roots that are due, then look again
@@ -638,6 +694,7 @@ impl Service {
                 limits: self.worker_limits(&job),
                 input_limits: self.config.limits.clone(),
                 gate: gate.clone(),
+                fence: self.fence.clone(),
             };
             let tx = self.results_tx.clone();
             let id = job.id;
@@ -723,6 +780,12 @@ impl Service {
         self.running.remove(&id);
         self.work_maybe = true;
         match (&finish, state) {
+            (_, FinalState::Superseded) => {
+                tracing::warn!(
+                    job_id = id,
+                    "fenced out: its lease had expired and another host took the job over; nothing published"
+                )
+            }
             (Finish::Done { output_dir, .. }, _) => {
                 tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
             }
@@ -753,8 +816,14 @@ impl Service {
             return Err(error);
         }
         self.busy_pause = (self.busy_pause * 2).clamp(BUSY_PAUSE_MIN, BUSY_PAUSE_MAX);
+        let why = match &error {
+            ServiceError::Store(StoreError::Postgres { .. }) => {
+                "the database server is out of reach"
+            }
+            _ => "another process holds the database's write lock",
+        };
         tracing::warn!(
-            "{error}: another process holds the database's write lock; trying again in {:.1} s",
+            "{error}: {why}; trying again in {:.1} s",
             self.busy_pause.as_secs_f64()
         );
         self.notifier.watchdog_ping();

@@ -63,6 +63,9 @@ pub struct JobSpec {
     pub limits: WorkerLimits,
     pub input_limits: crate::mesh::InputLimits,
     pub gate: Arc<PublishGate>,
+    /// The shared queue's fence: publishing happens only while this attempt's token
+    /// still holds the job (`None` on SQLite, where the daemon owns its jobs).
+    pub fence: Option<Arc<crate::store::pg::Fence>>,
 }
 
 /// What a finished thread reports.
@@ -171,6 +174,7 @@ fn halt(kind: FailureKind, message: impl Into<String>, transient: bool) -> Halt 
 
 /// The job's phases in order; `None` when it was abandoned.
 fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
+    let started = Instant::now();
     let phases = || -> Result<Finish, Halt> {
         preflight(spec)?;
         let job = &spec.job;
@@ -188,17 +192,49 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
         let report = process_in_worker(spec, primary, &scan_dir)?;
         check_inputs(job)?;
         write_sidecar(spec, &report, &scan_dir, &stem, started_ms)?;
-        let final_dir = publish(spec, &scan_dir, &stem)?;
-        tracing::info!(output = %final_dir.display(), ms = report.total_ms, "published");
-        Ok(done(
-            report.with_output_folder(&scan_dir, &final_dir),
-            &final_dir,
-        ))
+        let publish_and_record = || {
+            let final_dir = publish(spec, &scan_dir, &stem)?;
+            tracing::info!(output = %final_dir.display(), ms = report.total_ms, "published");
+            Ok(done(
+                report.with_output_folder(&scan_dir, &final_dir),
+                &final_dir,
+            ))
+        };
+        match &spec.fence {
+            None => publish_and_record(),
+            Some(fence) => fenced(fence, job, started, publish_and_record),
+        }
     };
     match phases() {
         Ok(finish) => Some(finish),
         Err(Halt::Failed(f)) => Some(*f),
         Err(Halt::Abandoned) => None,
+    }
+}
+
+/// Publishes through the shared queue's fence: only while this attempt holds the job.
+fn fenced(
+    fence: &crate::store::pg::Fence,
+    job: &ClaimedJob,
+    started: Instant,
+    publish: impl FnOnce() -> Result<Finish, Halt>,
+) -> Result<Finish, Halt> {
+    use crate::store::pg::Fenced;
+    match fence.hold(job, started, publish) {
+        Ok(Fenced::Held(result)) => result,
+        Ok(Fenced::Superseded) => {
+            tracing::warn!("lease lost and the job taken over: fenced out, nothing published");
+            Err(halt(
+                FailureKind::Superseded,
+                "fenced out: another attempt holds the job",
+                false,
+            ))
+        }
+        Err(e) => Err(halt(
+            FailureKind::Output,
+            format!("cannot confirm this attempt still holds the job ({e}); not published"),
+            true,
+        )),
     }
 }
 

@@ -44,11 +44,17 @@ pub enum FailureKind {
     DaemonStopped,
     /// The attempt was stopped (a shutdown) and not counted: the attempt log only.
     Interrupted,
+    /// Shared queue: the attempt's lease expired (its daemon died, hung or lost the
+    /// database); counted, like a daemon that stopped.
+    LeaseExpired,
+    /// Shared queue: the attempt came back after its job was taken over; fenced out,
+    /// nothing of it published. The attempt log only.
+    Superseded,
 }
 
 impl FailureKind {
     /// Every kind, in the order of docs/service.md.
-    pub const ALL: [FailureKind; 18] = [
+    pub const ALL: [FailureKind; 20] = [
         FailureKind::Input,
         FailureKind::Step,
         FailureKind::Output,
@@ -67,6 +73,8 @@ impl FailureKind {
         FailureKind::Spawn,
         FailureKind::DaemonStopped,
         FailureKind::Interrupted,
+        FailureKind::LeaseExpired,
+        FailureKind::Superseded,
     ];
 
     /// The documented name (as serialised).
@@ -90,6 +98,8 @@ impl FailureKind {
             FailureKind::Spawn => "spawn",
             FailureKind::DaemonStopped => "daemon_stopped",
             FailureKind::Interrupted => "interrupted",
+            FailureKind::LeaseExpired => "lease_expired",
+            FailureKind::Superseded => "superseded",
         }
     }
 

@@ -5,11 +5,14 @@
 //! IMMEDIATE`, so that a reader turned writer can never fail on a stale snapshot. The
 //! daemon owns one connection; the command line opens its own, short-lived ones.
 
+pub mod backend;
 mod failure;
+pub mod pg;
 pub mod query;
 pub mod relpath;
 pub mod schema;
 
+pub use backend::{Queue, StoreConfig};
 pub use failure::FailureKind;
 pub use relpath::RelPath;
 
@@ -40,6 +43,16 @@ pub enum StoreError {
     Missing { path: PathBuf },
     #[error("{path}: integrity check failed: {message}")]
     Integrity { path: PathBuf, message: String },
+    #[error("{target}: {}", pg::detail(source))]
+    Postgres {
+        target: String,
+        #[source]
+        source: postgres::Error,
+    },
+    #[error("{target}: {message}")]
+    Data { target: String, message: String },
+    #[error(transparent)]
+    Conn(#[from] pg::ConnInfoError),
     #[error("job {0} not found")]
     NoSuchJob(i64),
     #[error("job {id} is {state}; {message}")]
@@ -53,9 +66,13 @@ pub enum StoreError {
 pub type Result<T> = std::result::Result<T, StoreError>;
 
 impl StoreError {
-    /// Another connection holds the database's write lock (past `busy_timeout`): the
-    /// operation can be tried again later, nothing is wrong with the database.
+    /// Another connection holds the database's write lock (past `busy_timeout`), or the
+    /// PostgreSQL server cannot be reached right now (restarting, network): the operation
+    /// can be tried again later, nothing is wrong with the database.
     pub fn is_busy(&self) -> bool {
+        if let StoreError::Postgres { source, .. } = self {
+            return pg::is_retryable(source);
+        }
         matches!(
             self,
             StoreError::Sqlite {
@@ -238,6 +255,8 @@ pub enum FinalState {
     Failed,
     Quarantined,
     Requeued,
+    /// Shared queue: the attempt had lost its job to another; recorded `superseded`.
+    Superseded,
 }
 
 /// Identity of this daemon run, stamped on every attempt.
@@ -271,10 +290,10 @@ impl Owner {
 
 /// Longest failure message recorded: reasons are one line; an input that makes one longer
 /// (a file name, a worker's last words) must not fill the database.
-const MAX_ERROR_BYTES: usize = 4096;
+pub(crate) const MAX_ERROR_BYTES: usize = 4096;
 
 /// `text` cut to at most `max` bytes at a character boundary, marked `…` when cut.
-fn cut(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
+pub(crate) fn cut(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
     if text.len() <= max {
         return text.into();
     }

@@ -317,13 +317,13 @@ impl Store {
 }
 
 /// `root/rel_path` as shown: escaped, any bytes.
-fn input_display(root: &str, rel: &RelPath) -> String {
+pub(crate) fn input_display(root: &str, rel: &RelPath) -> String {
     format!("{}/{rel}", escape_str(root))
 }
 
 /// Makes the input-derived fields of a `show` row printable: `rel_path` decoded from its
 /// stored form and escaped, paths escaped, error texts escaped and bounded.
-fn escape_row(row: &mut Value) {
+pub(crate) fn escape_row(row: &mut Value) {
     let Value::Object(map) = row else { return };
     for (name, value) in map.iter_mut() {
         let Value::String(text) = value else { continue };

@@ -2,6 +2,8 @@
 //! checkout, see its SOURCES.md) and loading one. `mod common;` in a test file.
 #![allow(dead_code)]
 
+pub mod pg;
+
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
 use std::path::PathBuf;
