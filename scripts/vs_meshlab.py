@@ -26,7 +26,9 @@ The default scans are face400k and coral400k under /tmp/scans (make them with th
 """
 
 import argparse
+import json
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -78,15 +80,40 @@ def run_meshlab(scan, work):
 
 
 def run_scanmill(scan, work):
+    """Seconds from start to exit, and the run's step times (ms) from its report."""
     out = os.path.join(work, "scanmill")
+    report = os.path.join(work, "report.json")
     shutil.rmtree(out, ignore_errors=True)
+    cpu_before = children_cpu()
     start = time.perf_counter()
     subprocess.run(
-        [SCANMILL, "process", scan, "--recipe", RECIPE, "--out", out],
+        [SCANMILL, "process", scan, "--recipe", RECIPE, "--out", out, "--report", report],
         check=True,
         capture_output=True,
     )
-    return time.perf_counter() - start
+    seconds = time.perf_counter() - start
+    with open(report) as f:
+        times = step_times(json.load(f))
+    times["CPU (user + system)"] = 1e3 * (children_cpu() - cpu_before)
+    return seconds, times
+
+
+def children_cpu():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def step_times(report):
+    """load, each step's wall time, fair's sweeps alone (the rest of its step is the
+    texture read-back), and the tail (metrics, preview, write: the total's remainder)."""
+    times = {"load": report["load_ms"]}
+    for step in report["steps"]:
+        times[step["kind"]] = step["wall_ms"]
+        if step["kind"] == "fair":
+            times["fair sweeps"] = step["figures"]["time_ms"]
+    steps = sum(s["wall_ms"] for s in report["steps"])
+    times["tail"] = report["total_ms"] - report["load_ms"] - steps
+    return times
 
 
 def reference_ms():
@@ -98,23 +125,34 @@ def spread(values):
     return f"{statistics.median(values):.2f} s ({min(values):.2f}–{max(values):.2f})"
 
 
-def compare(name, scan, runs, work):
-    ours, theirs, faces = [], [], None
+def one_round(i, scan, work, sample):
+    """One run of each side on `scan`, into `sample` (lists: ours, theirs, steps, faces)."""
+    ours, theirs, steps, faces = sample
+    # Alternate which side goes first, so that neither always meets a warm cache.
+    if i % 2 == 1:
+        seconds, faces[0] = run_meshlab(scan, work)
+        theirs.append(seconds)
+    seconds, times = run_scanmill(scan, work)
+    ours.append(seconds)
+    steps.append(times)
+    if i % 2 == 0:
+        seconds, faces[0] = run_meshlab(scan, work)
+        theirs.append(seconds)
+
+
+def compare(scans, runs, work):
+    """Rounds over every scan, so that a change in the machine's speed meets all scans
+    alike; prints one row per scan and returns each scan's median step times."""
+    samples = {name: ([], [], [], [None]) for name, _ in scans}
     for i in range(runs):
-        # Alternate which side goes first, so that neither always meets a warm cache.
-        if i % 2 == 0:
-            ours.append(run_scanmill(scan, work))
-            seconds, faces = run_meshlab(scan, work)
-            theirs.append(seconds)
-        else:
-            seconds, faces = run_meshlab(scan, work)
-            theirs.append(seconds)
-            ours.append(run_scanmill(scan, work))
-    ratio = statistics.median(ours) / statistics.median(theirs)
-    print(
-        f"| {name} | {spread(ours)} | {spread(theirs)} ({faces} faces) | {ratio:.2f}× |",
-        flush=True,
-    )
+        for name, scan in scans:
+            one_round(i, scan, work, samples[name])
+    medians = {}
+    for name, (ours, theirs, steps, faces) in samples.items():
+        ratio = statistics.median(ours) / statistics.median(theirs)
+        print(f"| {name} | {spread(ours)} | {spread(theirs)} ({faces[0]} faces) | {ratio:.2f}× |")
+        medians[name] = {k: statistics.median(t[k] for t in steps) for k in steps[0]}
+    return medians
 
 
 def main():
@@ -136,9 +174,13 @@ def main():
               f"load average {os.getloadavg()[0]:.2f}")
         print("| scan | scanmill process (face-scan recipe) | MeshLab pipeline | ratio |")
         print("|---|---|---|---|")
-        for name, scan in scans:
-            compare(name, scan, args.runs, work)
+        medians = compare(scans, args.runs, work)
         after = reference_ms()
+    print("\nscanmill's steps, medians (ms, from the reports):")
+    print("| step | " + " | ".join(medians) + " |")
+    print("|---|" + "---|" * len(medians))
+    for step in next(iter(medians.values())):
+        print(f"| {step} | " + " | ".join(f"{m.get(step, 0):.0f}" for m in medians.values()) + " |")
     print(f"machine-speed reference (face_scan bench's sort): {before:.0f} ms before, {after:.0f} ms after; "
           f"load average {os.getloadavg()[0]:.2f}")
 
