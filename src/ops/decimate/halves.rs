@@ -36,8 +36,9 @@ pub const STAGE_FACTOR: f64 = 1.5;
 
 /// `halves = "auto"` splits meshes of at least this many triangles (and more than
 /// 2 × [`STAGE_FACTOR`] × the target). From there the halves' two set-ups and loops together
-/// cost no more CPU than one pass over the whole (smaller meshes are cheaper per collapse),
-/// so the second core's share is a gain even on a busy machine (docs/decimation.md).
+/// take about the CPU time of one pass over the whole (more instructions, but the smaller
+/// meshes run at fewer cycles per instruction), so the second core's share is a gain
+/// (docs/decimation.md).
 pub const AUTO_MIN_FACES: usize = 75_000;
 
 /// Whether `params` ask for (or allow) the halves on `mesh`, and the target they need.
