@@ -1,17 +1,79 @@
-//! Decimation speed against meshoptimizer (issue #5): a 400,000-triangle textured scan (the
-//! USNM coral, 100k triangles, subdivided once with `ops::subdivide`) to 26,000 faces, with
-//! face collapse, edge collapse, the two clustering methods and meshoptimizer's
-//! `simplify_with_attributes` (texture coordinates as attributes, weight 1) in one run.
-//! Also the 59,697-triangle facefuns face to 26,000 faces.
+//! Decimation speed against meshoptimizer (issues #5 and #27): scanmill's decimate step as
+//! the face-scan recipe runs it (edge collapse to 26,000 faces, borders kept, halves
+//! `auto`) beside meshoptimizer's `simplify_with_attributes` (texture coordinates as
+//! attributes, weight 1) on the same input, in one run, on every scan of 50,000 triangles or
+//! more in ../shared/data and on two 400,000-triangle scans:
+//!
+//! - face400k: facefuns made scanner-sized with noise (benches/common, as the face_scan
+//!   bench makes it);
+//! - coral-400k: the USNM coral made scanner-sized at 399,972 triangles, which is the whole
+//!   coral subdivided once (one chart per texture island: 41,280 seam edges).
+//!
+//! Every input is renumbered for locality first (`Mesh::reorder_for_locality`), as
+//! `scanmill process` does before a recipe that decimates; both decimators get that mesh.
+//! On the coral the other methods (face collapse, the two clusterings) and edge collapse in
+//! one pass run too.
+//!
+//! cargo bench --bench decimate                                  # everything (~4 min)
+//! cargo bench --bench decimate -- '/(meshopt|scanmill)$'         # the side-by-side only
+//! cargo bench --bench decimate -- 'coral-400k/'                 # one scan, every method
+
+mod common;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
 use scanmill::ops::decimate::{DecimateParams, Halves, Method, decimate};
-use scanmill::ops::subdivide::subdivide;
+use scanmill::ops::subdivide::scanner_sized;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
+
+const TARGET: usize = 26_000;
+
+/// The scans of ../shared/data with 50,000 triangles or more (SOURCES.md; igea once, the
+/// tristrip file holds the same triangles), with the name the bench gives each.
+const SCANS: [(&str, &str); 11] = [
+    ("facefuns-60k", "textured/facefuns_di3d_face/example.obj"),
+    (
+        "esp32cam-53k",
+        "textured/esp32cam_meshroom_raw/texturedMesh.obj",
+    ),
+    (
+        "ict-52k",
+        "textured/ict_facekit_neutral/generic_neutral_mesh.obj",
+    ),
+    (
+        "usnm-coral-100k",
+        "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz",
+    ),
+    ("bunny-69k", "untextured/stanford_bunny/bun_zipper.ply"),
+    (
+        "bunny-range-79k",
+        "untextured/stanford_bunny_range_scans/bun000_grid_triangulated_DERIVED.ply",
+    ),
+    (
+        "nefertiti-70k",
+        "untextured/misc_scans/nefertiti_hack_lowres.obj",
+    ),
+    (
+        "armadillo-86k",
+        "untextured/misc_scans/stanford_armadillo_libigl.obj.gz",
+    ),
+    ("lucy-100k", "untextured/misc_scans/stanford_lucy_100k.ply"),
+    (
+        "castle-175k",
+        "raw_photogrammetry/openmvs_sceaux_castle_scene_mesh_refine.ply",
+    ),
+    (
+        "igea-269k",
+        "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
+    ),
+];
+
+const CORAL: &str = "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz";
+/// The coral's 99,993 triangles subdivided once: `scanner_sized` keeps them all.
+const CORAL_400K: usize = 399_972;
 
 fn scan(rel: &str) -> Mesh {
     load(
@@ -20,6 +82,11 @@ fn scan(rel: &str) -> Mesh {
     )
     .expect("scan")
     .0
+}
+
+fn renumbered(mut mesh: Mesh) -> Mesh {
+    mesh.reorder_for_locality();
+    mesh
 }
 
 /// meshoptimizer on the wedge buffer, texture coordinates as attributes.
@@ -64,45 +131,68 @@ fn meshopt_simplify(mesh: &Mesh, target: usize) -> usize {
         / 3
 }
 
+/// The inputs in the order they are benched: the two 400k scans first.
+fn inputs() -> Vec<(String, Mesh)> {
+    let mut inputs = vec![(
+        "coral-400k".to_string(),
+        renumbered(scanner_sized(&scan(CORAL), CORAL_400K)),
+    )];
+    if let Some(face) = common::face400k() {
+        inputs.push(("face400k".to_string(), renumbered(face)));
+    }
+    for (name, rel) in SCANS {
+        inputs.push((name.to_string(), renumbered(scan(rel))));
+    }
+    inputs
+}
+
+/// The coral's other methods: every decimator this crate has, on the multi-chart scan.
+fn other_methods(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    coral: &Mesh,
+) {
+    for method in [Method::FaceCollapse, Method::Cluster, Method::ClusterKeep] {
+        let p = DecimateParams {
+            method,
+            target_faces: Some(TARGET),
+            ..Default::default()
+        };
+        g.bench_function(format!("coral-400k/{}", method.name()), |b| {
+            b.iter(|| black_box(decimate(coral, &p).unwrap().0.triangles.len()))
+        });
+    }
+    // The default edge collapse decimates a large scan's halves on two cores first
+    // (`halves = "auto"`); this is the single pass beside it.
+    let one_pass = DecimateParams {
+        target_faces: Some(TARGET),
+        halves: Halves::Off,
+        ..Default::default()
+    };
+    g.bench_function("coral-400k/edge-collapse-one-pass", |b| {
+        b.iter(|| black_box(decimate(coral, &one_pass).unwrap().0.triangles.len()))
+    });
+}
+
 fn bench(c: &mut Criterion) {
-    let coral = subdivide(&scan(
-        "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz",
-    ));
-    let face = scan("textured/facefuns_di3d_face/example.obj");
+    let inputs = inputs();
     let mut g = c.benchmark_group("decimate");
     g.sample_size(10)
         .warm_up_time(Duration::from_secs(1))
-        .measurement_time(Duration::from_secs(8));
-    for (name, mesh) in [("coral-400k", &coral), ("facefuns-60k", &face)] {
+        .measurement_time(Duration::from_secs(5));
+    // The face-scan recipe's step: edge collapse, borders kept, halves `auto`.
+    let step = DecimateParams {
+        target_faces: Some(TARGET),
+        ..Default::default()
+    };
+    for (name, mesh) in &inputs {
         g.bench_function(format!("{name}/meshopt"), |b| {
-            b.iter(|| black_box(meshopt_simplify(mesh, 26_000)))
+            b.iter(|| black_box(meshopt_simplify(mesh, TARGET)))
         });
-        for method in [
-            Method::FaceCollapse,
-            Method::EdgeCollapse,
-            Method::Cluster,
-            Method::ClusterKeep,
-        ] {
-            let p = DecimateParams {
-                method,
-                target_faces: Some(26_000),
-                ..Default::default()
-            };
-            g.bench_function(format!("{name}/{}", method.name()), |b| {
-                b.iter(|| black_box(decimate(mesh, &p).unwrap().0.triangles.len()))
-            });
-        }
-        // The default edge collapse decimates a large scan's halves on two cores first
-        // (`halves = "auto"`); this is the single pass beside it.
-        let one_pass = DecimateParams {
-            target_faces: Some(26_000),
-            halves: Halves::Off,
-            ..Default::default()
-        };
-        g.bench_function(format!("{name}/edge-collapse-one-pass"), |b| {
-            b.iter(|| black_box(decimate(mesh, &one_pass).unwrap().0.triangles.len()))
+        g.bench_function(format!("{name}/scanmill"), |b| {
+            b.iter(|| black_box(decimate(mesh, &step).unwrap().0.triangles.len()))
         });
     }
+    other_methods(&mut g, &inputs[0].1);
     g.finish();
 }
 

@@ -13,6 +13,8 @@
 //! follow.
 
 mod common;
+#[path = "common/reference.rs"]
+mod reference;
 
 use common::{FACE, FACES, face400k};
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -43,32 +45,6 @@ fn children_usage() -> (f64, u64) {
         seconds(usage.ru_utime) + seconds(usage.ru_stime),
         usage.ru_maxrss as u64 * 1024,
     )
-}
-
-/// The machine's speed at the time of the runs: the median time of a fixed single-threaded
-/// workload (sorting 4 million pseudo-random integers). This machine's speed varies by up to
-/// 2× between hours (docs/face-scan.md); printing this beside the medians tells a slow hour
-/// from a slower scanmill.
-fn reference_workload_ms() -> f64 {
-    let mut times = Vec::new();
-    for _ in 0..5 {
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut values: Vec<u64> = (0..4_000_000)
-            .map(|_| {
-                // xorshift64
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                state
-            })
-            .collect();
-        let start = Instant::now();
-        values.sort_unstable();
-        times.push(start.elapsed().as_secs_f64() * 1e3);
-        std::hint::black_box(&values);
-    }
-    times.sort_by(f64::total_cmp);
-    times[times.len() / 2]
 }
 
 /// Jiffies the hypervisor took from this machine so far (the `steal` column of /proc/stat),
@@ -117,7 +93,7 @@ fn bench(c: &mut Criterion) {
 
     // Medians of wall and CPU time, and the peak memory, over a few runs of the binary.
     let runs = 5;
-    let reference_ms = reference_workload_ms();
+    let reference_ms = reference::reference_workload_ms();
     let (steal_before, jiffies_before) = steal_jiffies();
     let mut walls = Vec::new();
     let mut cpus = Vec::new();

@@ -288,6 +288,29 @@ fn halves_parse_and_say_when_they_cannot_apply() {
     }
 }
 
+/// `halves = "auto"` splits from `AUTO_MIN_FACES` triangles and more than 3 × the target,
+/// with the step's defaults (edge collapse, borders kept, a face target).
+#[test]
+fn halves_auto_applies_from_its_size_and_three_times_the_target() {
+    let mesh_of = |n: usize| Mesh {
+        triangles: vec![[0, 0, 0]; n],
+        ..Mesh::default()
+    };
+    let at = |target: usize| params(Method::EdgeCollapse, target);
+    let min = halves::AUTO_MIN_FACES;
+    // The face-scan recipe's 26,000 faces: the 86k-100k scans of ../shared/data split.
+    assert_eq!(halves::wanted(&mesh_of(100_000), &at(26_000)), Some(26_000));
+    assert_eq!(halves::wanted(&mesh_of(min), &at(min / 4)), Some(min / 4));
+    assert_eq!(halves::wanted(&mesh_of(min - 1), &at(1_000)), None);
+    // Not more than 3 × the target: one pass.
+    assert_eq!(halves::wanted(&mesh_of(78_000), &at(26_000)), None);
+    let off = DecimateParams {
+        halves: super::Halves::Off,
+        ..at(26_000)
+    };
+    assert_eq!(halves::wanted(&mesh_of(400_000), &off), None);
+}
+
 /// On a small closed mesh the halves keep it closed and reach the target; the cut's
 /// vertices are found in both halves and stitched.
 #[test]
