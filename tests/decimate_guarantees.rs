@@ -106,7 +106,7 @@ fn edge_collapse_guarantees_on_real_scans() {
 }
 
 /// The same guarantees when the halves are decimated first, on both cores (the default
-/// for scans of 75,000 triangles or more and 3 × the target; it is forced here, so that every
+/// for scans of 150,000 triangles or more and 3 × the target; it is forced here, so that every
 /// scan and target large enough goes through them).
 #[test]
 fn edge_collapse_in_halves_keeps_the_guarantees_on_real_scans() {

@@ -298,12 +298,13 @@ fn halves_auto_applies_from_its_size_and_three_times_the_target() {
     };
     let at = |target: usize| params(Method::EdgeCollapse, target);
     let min = halves::AUTO_MIN_FACES;
-    // The face-scan recipe's 26,000 faces: the 86k-100k scans of ../shared/data split.
-    assert_eq!(halves::wanted(&mesh_of(100_000), &at(26_000)), Some(26_000));
+    // The face-scan recipe's 26,000 faces: the 400k scans split, the 100k scans do not.
+    assert_eq!(halves::wanted(&mesh_of(400_000), &at(26_000)), Some(26_000));
+    assert_eq!(halves::wanted(&mesh_of(100_000), &at(26_000)), None);
     assert_eq!(halves::wanted(&mesh_of(min), &at(min / 4)), Some(min / 4));
     assert_eq!(halves::wanted(&mesh_of(min - 1), &at(1_000)), None);
     // Not more than 3 × the target: one pass.
-    assert_eq!(halves::wanted(&mesh_of(78_000), &at(26_000)), None);
+    assert_eq!(halves::wanted(&mesh_of(min), &at(min / 3)), None);
     let off = DecimateParams {
         halves: super::Halves::Off,
         ..at(26_000)
