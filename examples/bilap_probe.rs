@@ -1,7 +1,7 @@
 //! The ceiling of the thesis' fairing on the noise protocol of issue #4 (docs/fairing.md,
 //! "The method's ceiling").
 //!
-//! On small noise the curvature-magnitude diffusion of spec/fairing.md ch. 3 linearises to
+//! On small noise the curvature-magnitude diffusion of the fairing thesis' ch. 3 linearises to
 //! a bi-Laplacian flow of the positions, `x ← x − λ·L(L x)` with `L` the umbrella
 //! operator (docs/fairing.md, "Why", point 8). This probe runs that linear flow, with no
 //! guard, sign or placement effect in the way, on the four scans of the issue and prints

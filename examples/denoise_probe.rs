@@ -1,5 +1,5 @@
 //! Tuning probe for the `normal-filter` smoothing method (issue #26): the noise protocol of
-//! spec/smoothing.md on the four scans, Taubin (13 λ|μ pairs, the `smooth` step) against
+//! the smoothing thesis (docs/smoothing.md) on the four scans, Taubin (13 λ|μ pairs, the `smooth` step) against
 //! normal-filter settings, all measured with `compare` against the clean scan.
 //!
 //! `cargo run --release --example denoise_probe -- [SIGMA] 'toml params' …`

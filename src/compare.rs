@@ -1,7 +1,7 @@
 //! `scanmill compare`: run several recipes on the same scan and tabulate how far each result
 //! is from the clean input, so a lab can choose its smoothing (or any other) recipe on its
 //! own scans. With `noise`, the scan is first degraded with the smoothing thesis' noise
-//! protocol (spec/smoothing.md §10: Gaussian, σ = k · mean edge length, along the vertex
+//! protocol (smoothing thesis §4.2.2, docs/smoothing.md: Gaussian, σ = k · mean edge length, along the vertex
 //! normals by default, seeded) and every result is measured against the clean scan — which
 //! is how the thesis' comparison is reproduced.
 //!

@@ -1,9 +1,9 @@
-//! The thesis' own experiments (spec/fairing.md §6–§9) on synthetic shapes: fixed points,
+//! The fairing thesis' own experiments (§2.11, §3.8, §4.6) on synthetic shapes: fixed points,
 //! smoothing, stability under re-noising, the choice of λ on a torus, the vase that lost
 //! its top; and the fast schedule against the thesis schedule, threads, seams, creases.
 //!
 //! Noise: Gaussian along area-weighted vertex normals, σ = k × mean edge length, fixed
-//! seed (the protocol of spec/smoothing.md; the thesis gives no noise model, §6.2).
+//! seed (the smoothing thesis' protocol; docs/fairing.md reading F7).
 
 use glam::DVec3;
 use scanmill::mesh::{Mesh, Wedge, shapes};
@@ -123,7 +123,7 @@ fn noisy_sphere_becomes_smooth_without_shrinking_much() {
         let (e0, e1) = (sphere_error(&noisy), sphere_error(&m));
         assert!(e1 < 0.4 * e0, "{schedule:?}: {e0} -> {e1}");
         // Coarse sphere (642 vertices, noise 2% of the radius): about −1% volume,
-        // against −30% in 5 Laplace (umbrella) steps (fairing.md §14).
+        // against about −30% in 5 Laplace (umbrella) steps on the same sphere.
         let dv = volume(&m) / volume(&clean) - 1.0;
         assert!(dv.abs() < 0.015, "{schedule:?}: volume {dv}");
         assert_eq!(r.flipped_vs_input, 0);

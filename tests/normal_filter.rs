@@ -1,5 +1,5 @@
 //! The `normal-filter` smoothing method (issue #26) on real scans, with the noise protocol
-//! of spec/smoothing.md (Gaussian along the vertex normals, σ = k × mean edge, seed 1),
+//! of the smoothing thesis (§4.2.2; docs/smoothing.md: Gaussian along the vertex normals, σ = k × mean edge, seed 1),
 //! against Taubin (13 λ|μ pairs, λ 0.53, μ −0.54, the `smooth` step's defaults).
 //!
 //! Always run: the bunny at σ = 0.2 and the face check on james and facefuns. The

@@ -1,4 +1,4 @@
-//! The smoothing thesis' comparison (spec/smoothing.md §10) reproduced on real scans: noise
+//! The smoothing thesis' comparison (its ch. 5 and App. B; docs/smoothing.md) reproduced on real scans: noise
 //! σ = 0.2 × mean edge length along the vertex normals (seeded), then the four methods
 //! with their Table A.2 parameters, measured against the clean scan with `compare`.
 //!
@@ -68,7 +68,7 @@ fn abs_volumes(t: &CompareTable) -> Vec<f64> {
     (1..t.rows.len()).map(|r| volume(t, r).abs()).collect()
 }
 
-/// The thesis' cube (spec §8.1 [derived]): edge 1.8, each face a 32 × 32 grid of squares
+/// The thesis' cube (Table A.1, its size derived from the counts): edge 1.8, each face a 32 × 32 grid of squares
 /// cut into two triangles: 6146 vertices, 12288 triangles, closed, outward.
 fn thesis_cube() -> Mesh {
     use scanmill::mesh::Wedge;
@@ -120,7 +120,7 @@ fn thesis_cube() -> Mesh {
 /// Volume kept on the thesis' own cube with its solids' parameters (Table A.2: BMDS
 /// σ_c = 0.2, σ_s = 0.01 absolute, 4 iterations; Taubin counted in passes as the thesis
 /// does): HC best, then Taubin, bilateral, Laplace, as in Table B (cube: 99.96, 99.79,
-/// 99.57, 99.31 %) and the thesis' average ranking (spec §8.3). The bilateral filter keeps
+/// 99.57, 99.31 %) and the thesis' average ranking (§5.5). The bilateral filter keeps
 /// its default 3 rings: ρ = 0.4 would span about 6, and with the whole ball it rounds the
 /// cube's faces (angle 0.18 rad against the thesis' 0.085; docs/smoothing.md).
 #[test]

@@ -1,6 +1,6 @@
 //! Which files the watcher looks at: small glob patterns (`*`, `**`, `?`) for the
 //! configured include/exclude lists, and the built-in temporary-file patterns that are
-//! always ignored (spec/service.md §1.3: dot-files, `*.tmp`, `*.part`, … anchored at the end
+//! always ignored (docs/service.md, "How a scan is detected": dot-files, `*.tmp`, `*.part`, … anchored at the end
 //! of the name, so `x.obj.part` is never taken for an OBJ).
 
 /// Matches `text` against `pattern`: `*` any run of characters except `/`, `**` any run

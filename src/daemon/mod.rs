@@ -1,6 +1,6 @@
 //! The service: watch folders, group files into scan sets, queue jobs in SQLite, run them
 //! in worker processes with resource limits, publish results atomically, talk to systemd.
-//! See docs/service.md for operation and spec/service.md for the reasoning.
+//! See docs/service.md for operation and the reasoning, docs/architecture.md for the layout.
 
 pub mod cli;
 pub mod glob;

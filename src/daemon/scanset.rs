@@ -4,7 +4,7 @@
 //! those MTLs' map statements name, or one PLY. The set is ready when every member exists
 //! and no member's (size, mtime, inode) has changed for the quiet period, or at once when
 //! the optional marker file exists (and every member does). A set with a member missing
-//! waits; it is never processed without its textures (spec/service.md §1.3, §2.2).
+//! waits; it is never processed without its textures (docs/service.md, "Readiness").
 //!
 //! File events never make a set ready: the [`Tracker`] decides from `stat` alone, so a
 //! lost, duplicated or reordered event can delay a scan but never corrupt or repeat it.

@@ -3,7 +3,7 @@
 //!
 //! sd_notify is a few lines over `UnixDatagram` rather than the `sd-notify` crate: the
 //! protocol is one datagram of `KEY=VALUE` lines, the crate's API changed between 0.4 and
-//! 0.5 (spec/service.md §3.4), and without `$NOTIFY_SOCKET` every call must be a no-op
+//! 0.5, and without `$NOTIFY_SOCKET` every call must be a no-op
 //! anyway. Abstract sockets (`@name`) are supported.
 
 use std::os::unix::io::AsRawFd;

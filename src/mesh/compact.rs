@@ -1,5 +1,5 @@
 //! Removing unused vertices, wedges, texture coordinates and normals (the thesis'
-//! `RemoveFaces` clean-up, spec/decimation.md §6.1), keeping the order of what stays.
+//! `RemoveFaces` clean-up, decimation thesis §6.4), keeping the order of what stays.
 
 use super::model::{Index, Mesh};
 

@@ -1,4 +1,4 @@
-//! The wedge mesh model (spec/decimation.md §4, the `WedgeScene`).
+//! The wedge mesh model (the decimation thesis' `WedgeScene`, §6.4, after Hoppe 1999).
 //!
 //! A *vertex* is a position. A *wedge* is a (vertex, texture coordinate, normal)
 //! combination. A triangle's three corners are wedges. A texture seam is then simply a

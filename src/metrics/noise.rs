@@ -19,7 +19,8 @@ pub enum NoiseDirection {
     /// One N(0, σ²) offset per vertex along its area-weighted normal.
     #[default]
     Normal,
-    /// Independent N(0, σ²) per x, y, z (the digest's reading of the thesis).
+    /// Independent N(0, σ²) per x, y, z (one reading of the smoothing thesis, §4.2.2, which
+    /// does not say).
     Isotropic,
 }
 

@@ -1,9 +1,9 @@
-//! The crop box (spec/decimation.md §6.2, the thesis' "Scene cut"): an axis-aligned box
+//! The crop box (the decimation thesis' "Scene cut", §6.4): an axis-aligned box
 //! given as `min`/`max` or as a symmetric `abs_max` (|x| ≤ X, |y| ≤ Y, |z| ≤ Z), optionally
 //! in a frame whose origin sits at `translation` in the scan's coordinates (scanners place
 //! their origin differently: the box in scan coordinates is the given box + `translation`).
 //!
-//! Modes. [I] The thesis does not define "outside" (digest §6.2, pitfall 21):
+//! Modes. The thesis does not define "outside" (reading R15 in docs/decimation.md):
 //! - `any-corner-outside` (default): a triangle with any corner outside the box goes;
 //! - `all-corners-outside`: only triangles with every corner outside go (a triangle whose
 //!   corners are all outside but which crosses the box goes too);

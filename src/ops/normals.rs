@@ -1,8 +1,8 @@
-//! Normal recompute (spec/decimation.md §6.3, "Recompute normals").
+//! Normal recompute (the decimation thesis' "Recompute normals", §6.4).
 //!
-//! [T] The new normal of a vertex is the normalised sum of the normals of its triangles.
-//! [I] The thesis does not say whether face normals are weighted; we offer area weighting
-//! (raw cross products, the digest's reading and our default) and angle weighting
+//! The thesis: the new normal of a vertex is the normalised sum of the normals of its triangles.
+//! It does not say whether face normals are weighted; we offer area weighting
+//! (raw cross products, the plainest reading and our default) and angle weighting
 //! (Thürmer & Wüthrich), which is less sensitive to irregular tessellation.
 //! The result is written to every wedge of the vertex, which removes normal
 //! discontinuities; with `crease_angle`, corners across an edge sharper than that angle
@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum NormalWeighting {
-    /// Face normals weighted by triangle area (thesis §6.3 as the digest reads it).
+    /// Face normals weighted by triangle area (the plainest reading of the thesis).
     #[default]
     Area,
     /// Face normals weighted by the corner angle at the vertex.

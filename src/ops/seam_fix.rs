@@ -1,4 +1,4 @@
-//! The texture fix after decimation (spec/decimation.md §5.7, thesis §3.3): output
+//! The texture fix after decimation (decimation thesis §3.3; docs/decimation.md): output
 //! triangles whose texture coordinates moved far more than their positions get them
 //! recomputed by projecting their corners onto the input triangle they descend from
 //! (`Mesh::triangle_origins`) and interpolating that triangle's texture coordinates
@@ -6,7 +6,7 @@
 //! so a repaired triangle never straddles a seam.
 //!
 //! A repaired corner: the thesis gives the repaired triangle its own texture coordinates
-//! and wedges (§5.7 [I]), leaving its neighbours' alone. Done always, that cuts new texture
+//! and wedges (our reading: the thesis leaves it implicit), leaving its neighbours' alone. Done always, that cuts new texture
 //! seams into continuous charts: the seamless facefuns face decimated to 26k came out with
 //! 12,763 seam edges, each a possible visible crack in the texture. So where every triangle
 //! around the corner's wedge descends from one input chart, the wedge itself is corrected,
@@ -15,7 +15,7 @@
 //! triangles around the corner come from different charts (a real chart boundary) or the
 //! closest point lies in another chart.
 //!
-//! Detection (§5.7): the thesis flags corner i when `10⁻²·‖p̂′ᵢ − p̂ᵢ‖ < ‖t′ᵢ − tᵢ‖`, with
+//! Detection (§3.3, reading R14 in docs/decimation.md): the thesis flags corner i when `10⁻²·‖p̂′ᵢ − p̂ᵢ‖ < ‖t′ᵢ − tᵢ‖`, with
 //! positions normalised into [−1, 1]³. Read literally that flags nearly every corner that
 //! moved at all (a texture coordinate moves in proportion to its position, with the chart's
 //! scale, usually far above 10⁻²), which is the opposite of the stated intent ("a corner whose

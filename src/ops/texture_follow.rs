@@ -1,6 +1,6 @@
 //! Keeping the texture on the surface when vertices slide along it.
 //!
-//! `relax` moves vertices tangentially (the non-uniformity criterion, spec/fairing.md ch. 3)
+//! `relax` moves vertices tangentially (the non-uniformity criterion of the fairing thesis, ch. 3)
 //! and `fair` moves border vertices along the border and interior ones off their old spot;
 //! the thesis keeps every texture coordinate as it was, so the photo slides with the
 //! vertices: on james_face_stereo_capture `relax` alone left a mean texture deviation of 6.0

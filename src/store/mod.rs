@@ -1,6 +1,6 @@
 //! The job queue and audit log in SQLite.
 //!
-//! Rules (spec/service.md §4): WAL, `synchronous=FULL` (an audit record that was committed
+//! Rules (docs/service.md, "Audit and operations"): WAL, `synchronous=FULL` (an audit record that was committed
 //! survives a power cut), `busy_timeout`, and every transaction that writes is `BEGIN
 //! IMMEDIATE`, so that a reader turned writer can never fail on a stale snapshot. The
 //! daemon owns one connection; the command line opens its own, short-lived ones.

@@ -42,7 +42,7 @@ pub fn curvature(prev: DVec3, cur: DVec3, next: DVec3) -> DVec3 {
 /// thesis' decision table on `a = h_nbrᵀ h_cur`, `b = (h_nbr·u)(u·h_cur)`).
 ///
 /// The thesis compares `a` and `b` exactly; in floating point "equal" is within a relative
-/// tolerance (fairing.md pitfall 16). A zero-length edge has no direction: (2.17) alone.
+/// tolerance (docs/fairing.md, reading F4). A zero-length edge has no direction: (2.17) alone.
 pub fn transfer_sign(h_nbr: DVec3, h_cur: DVec3, edge: DVec3) -> f64 {
     let a = h_nbr.dot(h_cur);
     let el = edge.length();
@@ -63,8 +63,7 @@ pub fn transfer_sign(h_nbr: DVec3, h_cur: DVec3, edge: DVec3) -> f64 {
 }
 
 /// The factor `t*` by which the offset from the neighbours' midpoint is scaled to give the
-/// ratio `r = H^{k+1}/H^k` (§2.7.3, eqs. 2.27–2.37, as the closed form of fairing.md
-/// §2.4.3): with `A = ‖d1 + d2‖²/(2S)`, `B = ‖d1 − d2‖²/(2S)`, (2.28) is
+/// ratio `r = H^{k+1}/H^k` (§2.7.3, eqs. 2.27–2.37, solved in closed form): with `A = ‖d1 + d2‖²/(2S)`, `B = ‖d1 − d2‖²/(2S)`, (2.28) is
 /// `r = t/(A t² + B)` in `t = 1 + 2α`. The root on the rising branch between α_min and α_max
 /// (2.29, 2.30), or the extremum of the same sign as `r` when there is no root (2.37).
 /// This is the same function as for surfaces, so [`super::surface::step_scale`] does it
@@ -166,7 +165,7 @@ pub fn nonuniformity_sweep(pts: &[DVec3], shape: CurveShape, lambda_u: f64) -> V
 }
 
 /// The non-uniformity vector (2.12): the tangential part of the way to the neighbours'
-/// midpoint. Zero when the neighbours coincide (`b = 0`, pitfall 22).
+/// midpoint. Zero when the neighbours coincide (`b = 0`: (2.10) is undefined there).
 pub fn nonuniformity(prev: DVec3, cur: DVec3, next: DVec3) -> DVec3 {
     let b = next - prev;
     let bb = b.length_squared();
@@ -261,7 +260,7 @@ mod tests {
 
     #[test]
     fn curvature_is_not_monotone_in_height() {
-        // fairing.md §2.1 [derived]: neighbours 2w apart, height h: H = 2h/(w² + h²).
+        // Derived from (2.9): neighbours 2w apart, height h: H = 2h/(w² + h²).
         let (p, q) = (DVec3::new(-1.0, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0));
         for h in [0.2, 1.0, 3.0] {
             let k = curvature(p, DVec3::new(0.0, h, 0.0), q).length();
@@ -312,8 +311,8 @@ mod tests {
         }
     }
 
-    /// Uniform noise per coordinate in the plane, `amp` × the edge length: the digest's
-    /// reading of the thesis' "Rand" inputs (fairing.md §6.2; the thesis gives no model).
+    /// Uniform noise per coordinate in the plane, `amp` × the edge length: a reading of the
+    /// thesis' "Rand" inputs (§2.11; the thesis gives no model, docs/fairing.md reading F7).
     fn noisy_circle(n: usize, amp: f64, seed: u64) -> Vec<DVec3> {
         let mut rand = lcg(seed);
         let edge = std::f64::consts::TAU / n as f64;

@@ -1,4 +1,4 @@
-//! Guards against the failures the thesis reports or implies (fairing.md §12):
+//! Guards against the failures the thesis reports or implies (docs/fairing.md, reading F8):
 //! which vertices stay fixed (non-manifold, creases, very high valence), and the check
 //! that a move neither flips a triangle nor makes a zero-area or needle triangle (a move
 //! that would is shortened, then skipped, and counted).
@@ -49,12 +49,12 @@ impl Reference {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct FixedCounts {
     /// No single fan (pinch, bowtie, non-manifold edge) or a triangle repeating a vertex:
-    /// the thesis assumes a manifold (§1.2.1, pitfall 28).
+    /// the thesis assumes a manifold (§1.2.1; docs/fairing.md reading F8).
     pub non_manifold: usize,
     /// On an edge sharper than `feature_angle`.
     pub crease: usize,
-    /// Valence above the limit, and their neighbours (the vase that lost its top, §3.8.1,
-    /// pitfall 25).
+    /// Valence above the limit, and their neighbours (the vase that lost its top, §3.8.1;
+    /// reading F8).
     pub high_valence: usize,
     /// Boundary vertices held because `boundary = "fixed"`, because their boundary walk is
     /// open or shorter than 3 vertices, or because they are the ends of an open walk.

@@ -1,4 +1,4 @@
-//! Curvature fairing and the non-uniformity pre-pass (spec/fairing.md; M. Matýsková,
+//! Curvature fairing and the non-uniformity pre-pass (docs/fairing.md; M. Matýsková,
 //! *Filtrace diskrétního povrchu*, MFF UK 2006): the recipe steps `relax` (non-uniformity
 //! only) and `fair` (both criteria).
 //!
@@ -270,7 +270,7 @@ impl FairParams {
 impl RelaxParams {
     pub fn plan(&self) -> Plan {
         // Only the non-uniformity criterion: T_h = 0 rather than λ = 0, which would still
-        // move vertices beyond the curvature maximum (fairing.md pitfall 13).
+        // move vertices beyond the curvature maximum (docs/fairing.md, reading F3).
         let surface = PhaseParams {
             lambda: 0.0,
             lambda_u: self.lambda_u,

@@ -5,7 +5,7 @@
 //!
 //! The rings come from adjacency (`Topology::ordered_ring`), not from the stored winding,
 //! so a non-orientable or inconsistently wound mesh still gets a valid local orientation
-//! (fairing.md pitfall 17).
+//! (docs/fairing.md, reading F5).
 
 use crate::mesh::{RingBuffers, Topology};
 use rayon::prelude::*;

@@ -40,12 +40,12 @@ pub struct VertexCurvature {
 /// `B_i = b_i² E − b_i b_iᵀ`, `b_i = a_i − a_{i+1}`.
 ///
 /// Factor: the thesis' (3.8) writes `3/2 · ∇ΣA_i² / ΣA_i²`, which is twice (3.13) when the
-/// gradient is carried through (fairing.md §3.2, pitfall 1). (3.13) is the one with
+/// gradient is carried through (docs/fairing.md, reading F1). (3.13) is the one with
 /// `H = 1/r` on regular polyhedra, as §3.3.1 states, so (3.13) is implemented. The factor
 /// does not change the motion, only reported values and the zero test.
 ///
 /// Direction: the thesis (§3.3.1) says **H** points into the centre of a regular
-/// polyhedron; (3.13) points outward (pitfall 2). Irrelevant to the algorithm, which only
+/// polyhedron; (3.13) points outward. Irrelevant to the algorithm, which only
 /// uses signs relative to a local orientation.
 pub fn curvature(a: DVec3, ring: &[DVec3]) -> VertexCurvature {
     let n = ring.len();
@@ -113,11 +113,11 @@ pub fn curvature(a: DVec3, ring: &[DVec3]) -> VertexCurvature {
 /// plane (3.23); the triangle whose planar angle at `a` contains the projection (3.24,
 /// 3.25) decides: `s = sign((h − p_i) · N_i)` (3.26), which equals `sign(h · N_i)`.
 ///
-/// Choices where the thesis is silent (fairing.md pitfall 16): mixed-sign `(β, γ)` count
+/// Choices where the thesis is silent (docs/fairing.md, reading F4): mixed-sign `(β, γ)` count
 /// as outside; exact comparisons use a relative tolerance; in the last case ("choose any
 /// p_i") we take the triangle where the sign is most decisive (largest `|ĥ · N̂_i|`),
 /// which is deterministic and never picks a triangle nearly parallel to `h`.
-/// Zero-area triangles are skipped (pitfall 23).
+/// Zero-area triangles are skipped.
 pub fn side(a: DVec3, ring: &[DVec3], h: DVec3) -> f64 {
     let hlen2 = h.length_squared();
     if !positive(hlen2) {
@@ -212,7 +212,7 @@ fn common_side(a: DVec3, ring: &[DVec3], h: DVec3, hlen2: f64) -> Option<f64> {
 }
 
 /// The scaled offset `t*` from the minimiser that gives the ratio `r = H^{k+1}/H^k`
-/// (§3.6.3, eqs. 3.30–3.35), as the closed form of fairing.md §3.5.3.
+/// (§3.6.3, eqs. 3.30–3.35), solved in closed form.
 ///
 /// With `t = 1 + α`, (3.30) reads `r = f(t) = t / (P t² + (1 − P))`. The thesis takes the
 /// root of the quadratic (3.31) inside `(α_min, α_max)` (3.32, 3.33), the rising branch
@@ -271,7 +271,7 @@ pub struct Interior<'a> {
     /// Every triangle's reference at the start of the step (see [`check_triangle`]).
     pub references: &'a [Reference],
     /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
-    /// length: fairing.md pitfall 21, an absolute 1e-4 in 1/length would depend on units).
+    /// length: docs/fairing.md reading F6; an absolute 1e-4 in 1/length would depend on units).
     pub eps: f64,
     /// `relax`: the positions at the start of the step; non-uniformity moves are put
     /// back onto the surface the vertex's fan had then (see [`super::Plan::tangential`]).
@@ -367,7 +367,8 @@ fn curvature_target(a: DVec3, own: &Sided, hbar: f64, lambda: f64, eps: f64) -> 
 /// non-manifold neighbours have no curvature and are left out, and with none left
 /// `H̄ = 0`, which is (4.4). Transfer sign = own side × neighbour's side × relative
 /// orientation of their rings (§3.6.2: a negative own side flips all neighbour signs).
-/// Neighbours with sign 0 still count in `n` (pitfall 15).
+/// Neighbours with sign 0 still count in `n` (the thesis is silent; the curves' divisor
+/// stays 2 when a sign is 0, and this follows it).
 ///
 /// `signed(j)` is neighbour j's side × its curvature magnitude. Sides and orientations are
 /// ±1 or 0, so the product is exact in any order; the fast sweep keeps these in an array
@@ -393,7 +394,7 @@ fn mean_neighbour_curvature(
 
 /// One curvature iteration in the thesis' order (§3.5.1): vertices one after another in
 /// index order, every quantity from the current positions (the neighbours' curvature
-/// included, fairing.md pitfall 10: the literal reading), the new position written back at
+/// included, docs/fairing.md reading F2: the literal reading), the new position written back at
 /// once.
 pub fn thesis_curvature_sweep(
     positions: &mut [DVec3],
@@ -711,7 +712,7 @@ mod tests {
 
     #[test]
     fn pyramid_over_hexagon_matches_the_closed_form() {
-        // fairing.md §3.2 [derived]: H(h) = 3/2 · h / (h² + 3/4) over a unit hexagon.
+        // Derived from (3.13): H(h) = 3/2 · h / (h² + 3/4) over a unit hexagon.
         for h in [0.1, 0.5, 3f64.sqrt() / 2.0, 2.0] {
             let (a, ring) = hexagon_fan(h);
             let c = curvature(a, &ring);
@@ -725,7 +726,7 @@ mod tests {
 
     #[test]
     fn planar_square_fan_slides_tangentially() {
-        // fairing.md §3.2: neighbours at (±1,0,0), (0,±1,0); H = 0, 0.288, 0.6, 0.732.
+        // From (3.13): neighbours at (±1,0,0), (0,±1,0); H = 0, 0.288, 0.6, 0.732.
         let ring = [DVec3::X, DVec3::Y, DVec3::NEG_X, DVec3::NEG_Y];
         for (x, h) in [(0.0, 0.0), (0.2, 0.288), (0.5, 0.6), (0.8, 0.732)] {
             let c = curvature(DVec3::new(x, 0.0, 0.0), &ring);
