@@ -326,10 +326,6 @@ impl DaemonConfig {
         if self.watch.is_empty() && !self.store.is_shared() {
             problems.push("no [[watch]] folder configured".into());
         }
-        if self.web.enabled && self.store.is_shared() {
-            problems
-                .push("[web] reads the SQLite store only; turn it off with a [store] url".into());
-        }
         self.check_dir("state_dir", &self.state_dir, &mut problems);
         for (i, w) in self.watch.iter().enumerate() {
             let name = format!("watch[{i}] ({})", crate::text::escape_path(&w.path));

@@ -46,8 +46,9 @@ impl Farm {
         self.dir.path().join("out")
     }
 
-    /// Host `n`'s config: its own state folder, the shared folders, the shared store.
-    fn config(&self, n: usize, lease_secs: f64, workers: usize) -> PathBuf {
+    /// Host `n`'s config: its own state folder, the shared folders, the shared store, and
+    /// `extra` TOML tables at the end.
+    fn config_with(&self, n: usize, lease_secs: f64, workers: usize, extra: &str) -> PathBuf {
         let d = self.dir.path();
         let state = d.join(format!("state{n}"));
         std::fs::create_dir_all(&state).unwrap();
@@ -58,7 +59,7 @@ impl Farm {
                 "state_dir = {state:?}\nworkers = {workers}\nrescan_secs = 5\nmin_free_disk_mb = 1\n\
                  retry_base_secs = 0.5\n\
                  [store]\nurl = {:?}\nlease_secs = {lease_secs}\nrescue_secs = 0.5\n\
-                 [[watch]]\npath = {:?}\noutput = {:?}\nrecipe = {:?}\nquiet_period_secs = 0.5\n",
+                 [[watch]]\npath = {:?}\noutput = {:?}\nrecipe = {:?}\nquiet_period_secs = 0.5\n{extra}",
                 self.url,
                 d.join("in"),
                 d.join("out"),
@@ -77,7 +78,19 @@ impl Farm {
         workers: usize,
         envs: &[(&str, &str)],
     ) -> KillOnDrop {
-        let config = self.config(n, lease_secs, workers);
+        self.start_with(n, lease_secs, workers, envs, "")
+    }
+
+    /// [`Farm::start`] with `extra` TOML tables in the host's config.
+    fn start_with(
+        &self,
+        n: usize,
+        lease_secs: f64,
+        workers: usize,
+        envs: &[(&str, &str)],
+        extra: &str,
+    ) -> KillOnDrop {
+        let config = self.config_with(n, lease_secs, workers, extra);
         let log_path = self.dir.path().join(format!("log-{n}.txt"));
         let log = std::fs::OpenOptions::new()
             .create(true)
@@ -689,4 +702,108 @@ fn claims_per_second(server: &PgServer, hosts: usize) {
         count as f64 * 1e3 / (last - first) as f64
     );
     drop(daemons);
+}
+
+/// GET `url` on the dashboard: (status, body).
+fn web_get(url: &str) -> (u16, String) {
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .build()
+        .into();
+    let mut r = agent
+        .get(url)
+        .call()
+        .unwrap_or_else(|e| panic!("{url}: {e}"));
+    let body = r.body_mut().read_to_string().unwrap();
+    (r.status().as_u16(), body)
+}
+
+/// The job ids listed on a page of the job list.
+fn listed_ids(page: &str) -> Vec<i64> {
+    page.split("<td class=\"n\"><a href=\"/jobs/")
+        .skip(1)
+        .map(|s| s[..s.find('"').unwrap()].parse().unwrap())
+        .collect()
+}
+
+#[test]
+fn the_dashboard_and_metrics_of_one_host_show_the_whole_shared_queue() {
+    let server = PgServer::start();
+    let farm = Farm::new(&server, "web");
+    let _host0 = farm.start_with(
+        0,
+        5.0,
+        1,
+        &[],
+        "[web]\nenabled = true\nlisten = \"127.0.0.1:0\"\n",
+    );
+    let _host1 = farm.start(1, 5.0, 1, &[]);
+    for tag in ["alpha", "beta", "gamma", "delta"] {
+        std::fs::write(farm.inbox().join(format!("{tag}.ply")), bunny_variant(tag)).unwrap();
+    }
+    assert!(
+        wait_for(120, || farm.count_done() == 4),
+        "not all done:\n{}",
+        farm.logs()
+    );
+    let jobs = farm.jobs();
+    let mut all: Vec<i64> = jobs.iter().map(|j| j["id"].as_i64().unwrap()).collect();
+    all.sort_unstable_by(|a, b| b.cmp(a));
+    // One job's report is not JSON (an edited row): it costs that job's figure only.
+    let broken = all[0];
+    server
+        .client("web")
+        .execute(
+            "UPDATE job SET report_json = 'not json' WHERE id = $1",
+            &[&broken],
+        )
+        .unwrap();
+
+    let logs = std::fs::read_to_string(farm.dir.path().join("log-0.txt")).unwrap();
+    let at = logs
+        .find("web dashboard on http://")
+        .unwrap_or_else(|| panic!("no dashboard address logged:\n{logs}"));
+    let base = logs[at + "web dashboard on ".len()..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .trim_end_matches('/')
+        .to_string();
+
+    let (status, page) = web_get(&format!("{base}/"));
+    assert_eq!(status, 200, "{page}");
+    assert_eq!(listed_ids(&page), all, "every host's jobs, newest first");
+    for tag in ["alpha", "beta", "gamma", "delta"] {
+        assert!(page.contains(&format!("{tag}.ply")), "{tag} listed");
+    }
+    let (_, page) = web_get(&format!("{base}/?q=GAMMA"));
+    assert_eq!(listed_ids(&page).len(), 1, "name search ignores case");
+    let (_, page) = web_get(&format!("{base}/?state=failed"));
+    assert!(listed_ids(&page).is_empty());
+    let (_, first) = web_get(&format!("{base}/?n=3"));
+    assert_eq!(listed_ids(&first), all[..3]);
+    let (_, second) = web_get(&format!("{base}/?n=3&before={}", all[2]));
+    assert_eq!(listed_ids(&second), all[3..]);
+
+    let (status, page) = web_get(&format!("{base}/jobs/{}", all[1]));
+    assert_eq!(status, 200, "{page}");
+    assert!(page.contains("done"), "{page}");
+    assert_eq!(web_get(&format!("{base}/jobs/999999")).0, 404);
+    assert_eq!(web_get(&format!("{base}/jobs/{broken}")).0, 200);
+    assert_eq!(web_get(&format!("{base}/trends")).0, 200);
+    assert_eq!(web_get(&format!("{base}/health")).0, 200);
+
+    let (status, metrics) = web_get(&format!("{base}/metrics"));
+    assert_eq!(status, 200, "{metrics}");
+    let done: i64 = metrics
+        .lines()
+        .filter(|l| l.starts_with("scanmill_jobs{state=\"done\""))
+        .map(|l| l.rsplit(' ').next().unwrap().parse::<i64>().unwrap())
+        .sum();
+    assert_eq!(done, 4, "{metrics}");
+    assert!(
+        metrics.contains("scanmill_job_processing_seconds_count"),
+        "{metrics}"
+    );
+    assert!(metrics.contains("scanmill_queue_depth 0"), "{metrics}");
 }

@@ -294,9 +294,14 @@ fn start_web(
     live: crate::web::Live,
 ) -> Result<(), ServiceError> {
     use crate::text::escape_path;
+    let store = match config.store.conn_info() {
+        Ok(Some(info)) => crate::web::StoreSource::Postgres(Box::new(info)),
+        Ok(None) => crate::web::StoreSource::Sqlite(config.database_path()),
+        Err(e) => return Err(ServiceError::Store(e)),
+    };
     let setup = crate::web::Setup {
         config: config.web.clone(),
-        database: config.database_path(),
+        store,
         live,
         roots: roots
             .iter()

@@ -3,8 +3,9 @@
 //!
 //! Rules:
 //! - the service loop and the store writer are never waited on: every query runs on
-//!   tokio's blocking pool, on read-only connections of the dashboard's own (WAL readers),
-//!   at most [`MAX_CONCURRENT_QUERIES`] at a time;
+//!   tokio's blocking pool, on connections of the dashboard's own (SQLite: read-only WAL
+//!   readers; PostgreSQL: connections that only read), at most [`MAX_CONCURRENT_QUERIES`] at
+//!   a time;
 //! - pages are HTML rendered here, without script; the Content-Security-Policy forbids
 //!   script altogether, and every scanner-provided string is escaped ([`html::esc`]);
 //! - files are served by job id only: a preview is the path the store recorded for that
@@ -101,7 +102,7 @@ pub type RootLine = (String, String, String);
 
 /// Everything the handlers share.
 struct Shared {
-    database: PathBuf,
+    store: StoreSource,
     pool: Mutex<Vec<Box<dyn DashboardReader>>>,
     permits: Semaphore,
     live: Live,
@@ -112,10 +113,29 @@ struct Shared {
     thumbs: thumbs::Thumbs,
 }
 
+/// The store the dashboard reads.
+#[derive(Clone)]
+pub enum StoreSource {
+    Sqlite(PathBuf),
+    Postgres(Box<crate::store::pg::conninfo::ConnInfo>),
+}
+
+impl StoreSource {
+    /// A new reader on it (the pool keeps it for the next request).
+    fn open(&self) -> Result<Box<dyn DashboardReader>, StoreError> {
+        Ok(match self {
+            StoreSource::Sqlite(path) => Box::new(SqliteReader::open(path)?),
+            StoreSource::Postgres(info) => Box::new(crate::store::pg::dashboard::PgReader::new(
+                crate::store::pg::PgStore::open_existing((**info).clone())?,
+            )),
+        })
+    }
+}
+
 /// What the daemon hands the dashboard.
 pub struct Setup {
     pub config: WebConfig,
-    pub database: PathBuf,
+    pub store: StoreSource,
     pub live: Live,
     pub roots: Vec<RootLine>,
     pub outputs: Vec<PathBuf>,
@@ -137,7 +157,7 @@ pub fn start(
     listener.set_nonblocking(true)?;
     let bound = listener.local_addr()?;
     let shared = Arc::new(Shared {
-        database: setup.database,
+        store: setup.store,
         pool: Mutex::new(Vec::new()),
         permits: Semaphore::new(MAX_CONCURRENT_QUERIES),
         live: setup.live,
@@ -226,7 +246,7 @@ async fn read<T: Send + 'static>(
         let pooled = shared.pool.lock().unwrap_or_else(|p| p.into_inner()).pop();
         let reader: Box<dyn DashboardReader> = match pooled {
             Some(r) => r,
-            None => Box::new(SqliteReader::open(&shared.database)?),
+            None => shared.store.open()?,
         };
         let result = f(reader.as_ref());
         if result.is_ok() {

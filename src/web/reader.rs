@@ -1,7 +1,7 @@
-//! What the dashboard reads, behind one small read-only trait ([`DashboardReader`]), so that
-//! a second store (PostgreSQL, issue #25) implements the same few queries; and its SQLite
-//! implementation, on a read-only connection of its own (WAL lets it read while the daemon
-//! writes; it never takes the write lock).
+//! What the dashboard reads, behind one small read-only trait ([`DashboardReader`]), and its
+//! SQLite implementation, on a read-only connection of its own (WAL lets it read while the
+//! daemon writes; it never takes the write lock). The PostgreSQL one is
+//! `store::pg::dashboard::PgReader`: the same queries in PostgreSQL's dialect.
 
 use crate::store::{RelPath, Store, StoreError};
 use rusqlite::types::ToSql;
@@ -182,8 +182,30 @@ const JOB_COLUMNS: &str = "id, state, root, rel_path, created_at, finished_at, i
     CASE WHEN json_valid(report_json) THEN json_extract(report_json, '$.metrics.distance.rms') END,
     process_ms, preview IS NOT NULL, error_kind, error";
 
+/// The page of `rows`, fetched in the cursor's order (`ORDER BY id DESC`, or `ASC` after
+/// `Cursor::After`) with one row more than `q.limit` when there is a further page.
+pub(crate) fn page_of(mut rows: Vec<JobRow>, q: &JobQuery) -> JobPage {
+    let more = rows.len() > q.limit;
+    rows.truncate(q.limit);
+    let (newer, older) = match q.cursor {
+        Cursor::Newest => (None, more.then(|| rows.last().map(|r| r.id)).flatten()),
+        Cursor::Before(_) => (
+            rows.first().map(|r| r.id),
+            more.then(|| rows.last().map(|r| r.id)).flatten(),
+        ),
+        Cursor::After(_) => {
+            rows.reverse();
+            (
+                more.then(|| rows.first().map(|r| r.id)).flatten(),
+                rows.last().map(|r| r.id),
+            )
+        }
+    };
+    JobPage { rows, newer, older }
+}
+
 /// `text` as a LIKE pattern that matches it anywhere, its own `%`, `_` and `\` literal.
-fn contains_pattern(text: &str) -> String {
+pub(crate) fn contains_pattern(text: &str) -> String {
     let mut p = String::from("%");
     for c in text.chars() {
         if matches!(c, '%' | '_' | '\\') {
@@ -276,28 +298,12 @@ impl DashboardReader for SqliteReader {
         values.push(Box::new(q.limit as i64 + 1));
         let conn = self.store.connection();
         let mut stmt = conn.prepare_cached(&sql).map_err(|e| self.err(e))?;
-        let mut rows = stmt
+        let rows = stmt
             .query_map(rusqlite::params_from_iter(values.iter()), job_row)
             .map_err(|e| self.err(e))?
             .collect::<rusqlite::Result<Vec<_>>>()
             .map_err(|e| self.err(e))?;
-        let more = rows.len() > q.limit;
-        rows.truncate(q.limit);
-        let (newer, older) = match q.cursor {
-            Cursor::Newest => (None, more.then(|| rows.last().map(|r| r.id)).flatten()),
-            Cursor::Before(_) => (
-                rows.first().map(|r| r.id),
-                more.then(|| rows.last().map(|r| r.id)).flatten(),
-            ),
-            Cursor::After(_) => {
-                rows.reverse();
-                (
-                    more.then(|| rows.first().map(|r| r.id)).flatten(),
-                    rows.last().map(|r| r.id),
-                )
-            }
-        };
-        Ok(JobPage { rows, newer, older })
+        Ok(page_of(rows, q))
     }
 
     fn job(&self, id: i64) -> Result<Option<Value>> {

@@ -19,6 +19,7 @@
 
 pub mod conninfo;
 pub mod copy;
+pub mod dashboard;
 mod finish;
 pub mod query;
 pub mod schema;
@@ -202,7 +203,10 @@ impl PgStore {
     }
 
     /// Runs a read outside any explicit transaction.
-    fn read<T: Send>(&mut self, f: impl FnOnce(&mut Client) -> DbResult<T> + Send) -> Result<T> {
+    pub(crate) fn read<T: Send>(
+        &mut self,
+        f: impl FnOnce(&mut Client) -> DbResult<T> + Send,
+    ) -> Result<T> {
         self.run(f)
     }
 

@@ -14,7 +14,7 @@
 //!   after another attempt took the job over; nothing of it was published).
 
 /// Migration `i` brings the schema from version `i` to `i + 1`.
-pub const MIGRATIONS: &[&str] = &[V1];
+pub const MIGRATIONS: &[&str] = &[V1, V2];
 
 /// The newest schema version this binary knows.
 pub const LATEST: u32 = MIGRATIONS.len() as u32;
@@ -144,4 +144,21 @@ CREATE TABLE waiting (
     updated_at bigint NOT NULL,
     PRIMARY KEY (root, rel_path)
 );
+"#;
+
+/// Version 2: `scanmill_json_number(doc, path)`, the number at `path` in the JSON text `doc`,
+/// or NULL when there is none or `doc` is not JSON. The dashboard reads its figures from
+/// `report_json` with it: scanmill writes only valid JSON there, but a row copied from an
+/// older SQLite store or edited by hand must cost one figure, not the page (PostgreSQL 15 has
+/// no `IS JSON` test to guard the cast with).
+const V2: &str = r#"
+CREATE FUNCTION scanmill_json_number(doc text, path text[]) RETURNS double precision
+LANGUAGE plpgsql IMMUTABLE PARALLEL SAFE AS $body$
+BEGIN
+    RETURN CASE WHEN jsonb_typeof(doc::jsonb #> path) = 'number'
+                THEN (doc::jsonb #>> path)::double precision END;
+EXCEPTION WHEN invalid_text_representation THEN
+    RETURN NULL;
+END
+$body$;
 "#;
