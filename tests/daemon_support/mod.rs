@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-pub const DATA: &str = "../shared/data";
+// Every test crate that has `mod daemon_support;` has `mod common;` too.
+pub use crate::common::DATA;
 pub const BIN: &str = env!("CARGO_BIN_EXE_scanmill");
 
 pub fn james_dir() -> PathBuf {
