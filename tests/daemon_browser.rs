@@ -7,6 +7,7 @@
 //! of each page's markup as served, with a `<base>` pointing at the daemon and a few lines
 //! of script added, loaded from a file: the images still come from the daemon over HTTP.
 
+mod common;
 mod daemon_support;
 
 use daemon_support::*;

@@ -1,6 +1,7 @@
 //! Configuration checks and the systemd unit: `validate-config` exit codes, the shipped
 //! config, `systemd-analyze verify` when the tool exists.
 
+mod common;
 mod daemon_support;
 
 use daemon_support::*;

@@ -2,6 +2,7 @@
 //! `format = ["obj", "glb"]` publishes the OBJ (with its MTL and texture) and the GLB together
 //! in one folder; the sidecar, the report, `show` and `history` list both with their hashes.
 
+mod common;
 mod daemon_support;
 
 use daemon_support::*;

@@ -5,6 +5,7 @@
 //! across daemon restarts. The faults come from the test-only hook
 //! `SCANMILL_TEST_WORKER_FAULT` (the worker misbehaves for inputs whose name matches).
 
+mod common;
 mod daemon_support;
 
 use daemon_support::*;

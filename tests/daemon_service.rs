@@ -2,6 +2,7 @@
 //! ../shared/data, a normals-only recipe, short quiet periods. Every wait is a poll with a
 //! generous deadline; nothing asserts on durations.
 
+mod common;
 mod daemon_support;
 
 use daemon_support::*;

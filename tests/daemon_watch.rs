@@ -3,6 +3,7 @@
 //! control characters, and inputs so large that reading them would hold the service loop.
 //! Every wait is a poll with a generous deadline; nothing asserts on durations.
 
+mod common;
 mod daemon_support;
 
 use daemon_support::*;

@@ -3,6 +3,7 @@
 //! /metrics through a Prometheus text-format parser, 404s, traversal attempts, the token.
 //! Every wait is a poll with a generous deadline; nothing asserts on durations.
 
+mod common;
 mod daemon_support;
 
 use daemon_support::*;

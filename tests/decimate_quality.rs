@@ -2,15 +2,16 @@
 //! `simplify_with_attributes` (texture coordinates as attributes, weight 1) at the same
 //! target (issue #5), and the effect of `seam_fix` after clustering.
 
+mod common;
+
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Material, Mesh, Texture};
 use scanmill::metrics::{FinalMetrics, MetricsOptions, TextureDeviation, compare};
 use scanmill::ops::decimate::{DecimateParams, Method, decimate};
 use scanmill::ops::seam_fix::{SeamFixParams, seam_fix};
-use std::path::Path;
 
 fn scan(rel: &str, texture: Option<&str>) -> Mesh {
-    let dir = Path::new("../shared/data/textured");
+    let dir = common::data("textured");
     let mut m = load(&dir.join(rel), &LoadOptions::default()).unwrap().0;
     if let Some(t) = texture {
         // facefuns has no MTL: pair it with its PNG (data/SOURCES.md).

@@ -3,6 +3,7 @@
 //! allow, features scanmill does not read. Each is refused by `scanmill process` and
 //! `scanmill inspect` with exit 65 and a one-line error, and nothing is written.
 
+mod common;
 mod hostile_support;
 
 use base64::Engine;
@@ -277,8 +278,8 @@ fn gltf_lying_counts_nan_and_unsupported_features_are_refused() {
 
 #[test]
 fn the_real_draco_glb_is_a_clear_error() {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join(
-        "../shared/data/textured/smithsonian_usnm1145291_draco/USNM_1145291-150k-2048-medium-100k-2048_draco.glb",
+    let file = common::data(
+        "textured/smithsonian_usnm1145291_draco/USNM_1145291-150k-2048-medium-100k-2048_draco.glb",
     );
     let r = inspect(&file);
     assert_eq!(r.code, Some(65), "{}", r.stderr);

@@ -8,15 +8,12 @@
 //! back within 1.2e-7 (two `f32` steps near 1). The seams, the grouping of corners into
 //! vertices and into wedges, must come back identical.
 
-use scanmill::mesh::{LoadOptions, Mesh, load, save};
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn data(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel)
-}
+use common::data;
+use scanmill::mesh::{LoadOptions, Mesh, load, save};
+use std::path::Path;
+use std::process::Command;
 
 /// The textured scans, with the texture for those whose OBJ names none.
 const TEXTURED: &[(&str, Option<&str>)] = &[
@@ -64,9 +61,7 @@ fn load_scan(rel: &str, texture: Option<&str>) -> Mesh {
         texture_override: texture.map(data),
         ..LoadOptions::default()
     };
-    load(&data(rel), &options)
-        .unwrap_or_else(|e| panic!("{rel}: {e}"))
-        .0
+    common::scan_with(rel, &options)
 }
 
 fn reload(path: &Path) -> Mesh {

@@ -8,11 +8,11 @@ mod common;
 mod daemon_support;
 
 use common::pg::PgServer;
-use daemon_support::{BIN, KillOnDrop, bunny_variant, signal, wait_exit, wait_for};
+use daemon_support::{BIN, KillOnDrop, bunny_variant, daemon_command, signal, wait_exit, wait_for};
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -97,20 +97,8 @@ impl Farm {
             .append(true)
             .open(&log_path)
             .unwrap();
-        let mut cmd = Command::new(BIN);
-        cmd.args(["daemon", "--config"])
-            .arg(&config)
-            .env("SCANMILL_LOG", "info")
-            .env_remove("NOTIFY_SOCKET")
-            .env_remove("JOURNAL_STREAM")
-            .env_remove("SCANMILL_TEST_STEP_DELAY_MS")
-            .stdout(Stdio::null())
-            .stderr(log);
-        for (k, v) in envs {
-            cmd.env(k, v);
-        }
         let before = std::fs::read_to_string(&log_path).unwrap_or_default().len();
-        let child = KillOnDrop(cmd.spawn().unwrap());
+        let child = KillOnDrop(daemon_command(&config, log, envs).spawn().unwrap());
         assert!(
             wait_for(60, || std::fs::read_to_string(&log_path)
                 .unwrap_or_default()

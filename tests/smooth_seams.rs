@@ -2,18 +2,15 @@
 //! 12k triangles): only positions move, seams and texture coordinates stay as they were,
 //! fixed border vertices do not move, and the result is the same for any thread count.
 
-use scanmill::mesh::{LoadOptions, Mesh, load};
-use scanmill::ops::smooth::{MethodName, SmoothParams, smooth};
-use std::path::Path;
+mod common;
 
-const JAMES: &str = "../shared/data/textured/james_face_stereo_capture/james.obj";
+use scanmill::mesh::Mesh;
+use scanmill::ops::smooth::{MethodName, SmoothParams, smooth};
+
+const JAMES: &str = "textured/james_face_stereo_capture/james.obj";
 
 fn james() -> Mesh {
-    let options = LoadOptions {
-        check_textures: false,
-        ..Default::default()
-    };
-    load(Path::new(JAMES), &options).unwrap().0
+    common::scan_untextured(JAMES)
 }
 
 #[test]

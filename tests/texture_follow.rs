@@ -2,16 +2,17 @@
 //! (src/ops/texture_follow.rs, on james_face_stereo_capture), and when `seam_fix` repairs a
 //! decimation inside one chart (src/ops/seam_fix.rs, on facefuns).
 
+mod common;
+
 use scanmill::mesh::LoadOptions;
-use scanmill::mesh::io::load;
 use scanmill::recipe::Recipe;
 use scanmill::recipe::runner::{NoProgress, run_recipe};
 use std::path::Path;
 
-const JAMES: &str = "../shared/data/textured/james_face_stereo_capture/james.obj";
+const JAMES: &str = "textured/james_face_stereo_capture/james.obj";
 
 fn texture_deviation_after(step: &str) -> (f64, serde_json::Value) {
-    let (mut mesh, _) = load(Path::new(JAMES), &LoadOptions::default()).unwrap();
+    let mut mesh = common::scan(JAMES);
     let text = format!("[metrics]\nsamples = 20000\n[[step]]\nkind = \"{step}\"\n");
     let recipe = Recipe::from_toml(&text, Path::new("r.toml")).unwrap();
     let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
@@ -41,7 +42,7 @@ fn relax_and_fair_keep_the_photo_on_the_face() {
 
 #[test]
 fn relax_then_fair_carry_the_texture_once_from_the_scanned_surface() {
-    let (mut mesh, _) = load(Path::new(JAMES), &LoadOptions::default()).unwrap();
+    let mut mesh = common::scan(JAMES);
     let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"relax\"\n[[step]]\nkind = \"fair\"\n[[step]]\nkind = \"normals\"\n";
     let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
     let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
@@ -62,14 +63,10 @@ fn seam_fix_cuts_no_seams_into_a_seamless_face() {
     // facefuns has one texture chart and no seams. The thesis' per-triangle repair gave
     // its decimation 12,763 seam edges; corners inside one chart are now fixed in place.
     let options = LoadOptions {
-        texture_override: Some("../shared/data/textured/facefuns_di3d_face/example.png".into()),
+        texture_override: Some(common::data("textured/facefuns_di3d_face/example.png")),
         ..LoadOptions::default()
     };
-    let (mut mesh, _) = load(
-        Path::new("../shared/data/textured/facefuns_di3d_face/example.obj"),
-        &options,
-    )
-    .unwrap();
+    let mut mesh = common::scan_with("textured/facefuns_di3d_face/example.obj", &options);
     let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\n[[step]]\nkind = \"seam_fix\"\n";
     let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
     let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();

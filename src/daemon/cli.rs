@@ -154,21 +154,10 @@ impl ServiceCommand {
                 out,
             } => {
                 super::systemd::init_logging();
-                let limits = match serde_json::from_str(limits) {
-                    Ok(l) => l,
-                    Err(e) => {
-                        let _ = writeln!(err, "scanmill: error: --limits: {e}");
-                        return exit::USAGE;
-                    }
+                let limits = match worker_limits(*protocol, limits, &mut err) {
+                    Ok(limits) => limits,
+                    Err(code) => return code,
                 };
-                if *protocol != super::protocol::VERSION {
-                    let _ = writeln!(
-                        err,
-                        "scanmill: error: the daemon speaks worker protocol {protocol}, this binary {}",
-                        super::protocol::VERSION
-                    );
-                    return exit::USAGE;
-                }
                 worker_process::run(WorkerArgs {
                     job_id: *job_id,
                     input: input.clone(),
@@ -191,19 +180,12 @@ impl ServiceCommand {
                 csv,
                 limit,
             } => {
-                let format = if *json {
-                    Format::Json
-                } else if *csv {
-                    Format::Csv
-                } else {
-                    Format::Text
-                };
                 let args = HistoryArgs {
                     since: since.clone(),
                     status: status.clone(),
                     input: input.clone(),
                     limit: *limit,
-                    format,
+                    format: Format::chosen(*json, *csv),
                 };
                 let at = StoreAt::new(config, store);
                 report(history(&at, &args, &mut out), &mut err)
@@ -223,6 +205,30 @@ impl ServiceCommand {
             } => report(db_migrate(config.as_deref(), to, &mut out), &mut err),
         }
     }
+}
+
+/// The worker's `--limits`, once its `--protocol` is checked; the usage exit code otherwise.
+fn worker_limits(
+    protocol: u32,
+    limits: &str,
+    err: &mut impl Write,
+) -> Result<crate::mesh::InputLimits, u8> {
+    let limits = match serde_json::from_str(limits) {
+        Ok(l) => l,
+        Err(e) => {
+            let _ = writeln!(err, "scanmill: error: --limits: {e}");
+            return Err(exit::USAGE);
+        }
+    };
+    if protocol != super::protocol::VERSION {
+        let _ = writeln!(
+            err,
+            "scanmill: error: the daemon speaks worker protocol {protocol}, this binary {}",
+            super::protocol::VERSION
+        );
+        return Err(exit::USAGE);
+    }
+    Ok(limits)
 }
 
 /// A command's failure: its exit code and one line for stderr.
@@ -368,6 +374,19 @@ pub enum Format {
     Text,
     Json,
     Csv,
+}
+
+impl Format {
+    /// The format `--json` / `--csv` ask for; text when neither.
+    fn chosen(json: bool, csv: bool) -> Format {
+        if json {
+            Format::Json
+        } else if csv {
+            Format::Csv
+        } else {
+            Format::Text
+        }
+    }
 }
 
 #[derive(Debug, Clone)]

@@ -320,6 +320,16 @@ fn start_web(
     Ok(())
 }
 
+/// A stream of the signal `kind`.
+fn signal_stream(
+    kind: tokio::signal::unix::SignalKind,
+) -> Result<tokio::signal::unix::Signal, ServiceError> {
+    tokio::signal::unix::signal(kind).map_err(|source| ServiceError::Io {
+        context: "signal handler".into(),
+        source,
+    })
+}
+
 impl Service {
     async fn main_loop(
         mut self,
@@ -327,25 +337,11 @@ impl Service {
         mut hints_rx: mpsc::Receiver<usize>,
         mut content_rx: mpsc::UnboundedReceiver<Done>,
     ) -> Result<(), ServiceError> {
-        use tokio::signal::unix::{SignalKind, signal};
-        let sig = |k| {
-            signal(k).map_err(|source| ServiceError::Io {
-                context: "signal handler".into(),
-                source,
-            })
-        };
-        let mut sigterm = sig(SignalKind::terminate())?;
-        let mut sigint = sig(SignalKind::interrupt())?;
-        let mut sighup = sig(SignalKind::hangup())?;
-
-        // First reconcile before READY: whatever arrived while we were down is found now.
-        for i in 0..self.roots.len() {
-            self.ensure_watch(i);
-            self.walk_root(i)?;
-        }
-        self.counts = self.store.counts()?;
-        self.notifier.ready(&self.status_line()?);
-        tracing::info!(roots = self.roots.len(), "ready");
+        use tokio::signal::unix::SignalKind;
+        let mut sigterm = signal_stream(SignalKind::terminate())?;
+        let mut sigint = signal_stream(SignalKind::interrupt())?;
+        let mut sighup = signal_stream(SignalKind::hangup())?;
+        self.reconcile_and_ready()?;
         let watchdog = self.notifier.watchdog().map(|w| w / 2);
 
         loop {
@@ -356,44 +352,14 @@ impl Service {
             self.busy_pause = Duration::ZERO;
             self.notifier.watchdog_ping();
 
-            let now = Instant::now();
-            let mut next = now + CLAIM_POLL;
-            for r in &self.roots {
-                next = next.min(r.walk_due);
-            }
-            if let Some(d) = self.tracker.next_deadline(now) {
-                next = next.min(d);
-            }
-            for r in self.running.values() {
-                next = next.min(r.deadline);
-            }
-            if let Some(w) = watchdog {
-                next = next.min(now + w);
-            }
-            if let Some(t) = self.next_run_after {
-                let wait = Duration::from_millis((t - now_ms()).max(0) as u64);
-                next = next.min(now + wait);
-            }
+            let next = self.next_wake(Instant::now(), watchdog);
             tokio::select! {
                 _ = sigterm.recv() => { tracing::info!("SIGTERM: stopping"); break; }
                 _ = sigint.recv() => { tracing::info!("SIGINT: stopping"); break; }
                 _ = sighup.recv() => {
                     tracing::warn!("SIGHUP: live reload is not supported; restart the service to apply a new configuration");
                 }
-                Some(first) = hints_rx.recv() => {
-                    // Gather the burst: one walk per root covers every event in it.
-                    let due = Instant::now() + DEBOUNCE;
-                    let mut i = first;
-                    loop {
-                        if self.roots[i].walk_due > due {
-                            self.roots[i].walk_due = due;
-                        }
-                        match hints_rx.try_recv() {
-                            Ok(next) => i = next,
-                            Err(_) => break,
-                        }
-                    }
-                }
+                Some(first) = hints_rx.recv() => self.gather_hints(first, &mut hints_rx),
                 Some((id, result)) = results_rx.recv() => {
                     if let Err(e) = self.job_finished(id, result) {
                         self.survive(e).await?;
@@ -413,6 +379,56 @@ impl Service {
         }
         self.shutdown(&mut results_rx, &mut sigterm, &mut sigint)
             .await
+    }
+
+    /// The first reconcile, before READY: whatever arrived while we were down is found now.
+    fn reconcile_and_ready(&mut self) -> Result<(), ServiceError> {
+        for i in 0..self.roots.len() {
+            self.ensure_watch(i);
+            self.walk_root(i)?;
+        }
+        self.counts = self.store.counts()?;
+        self.notifier.ready(&self.status_line()?);
+        tracing::info!(roots = self.roots.len(), "ready");
+        Ok(())
+    }
+
+    /// When the loop must wake at the latest: the next claim poll, walk, settling deadline,
+    /// job deadline, watchdog ping or delayed retry.
+    fn next_wake(&self, now: Instant, watchdog: Option<Duration>) -> Instant {
+        let mut next = now + CLAIM_POLL;
+        for r in &self.roots {
+            next = next.min(r.walk_due);
+        }
+        if let Some(d) = self.tracker.next_deadline(now) {
+            next = next.min(d);
+        }
+        for r in self.running.values() {
+            next = next.min(r.deadline);
+        }
+        if let Some(w) = watchdog {
+            next = next.min(now + w);
+        }
+        if let Some(t) = self.next_run_after {
+            let wait = Duration::from_millis((t - now_ms()).max(0) as u64);
+            next = next.min(now + wait);
+        }
+        next
+    }
+
+    /// Gathers a burst of watch hints: one walk per root covers every event in it.
+    fn gather_hints(&mut self, first: usize, hints_rx: &mut mpsc::Receiver<usize>) {
+        let due = Instant::now() + DEBOUNCE;
+        let mut i = first;
+        loop {
+            if self.roots[i].walk_due > due {
+                self.roots[i].walk_due = due;
+            }
+            match hints_rx.try_recv() {
+                Ok(next) => i = next,
+                Err(_) => break,
+            }
+        }
     }
 
     /// The queue's side of one turn of the loop: record what could not be recorded, claim

@@ -498,29 +498,9 @@ fn size(bytes: u64) -> String {
 }
 
 fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
-    let peak = (ended.rusage.ru_maxrss.max(0) as u64) << 10;
-    let cpu = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
-    let cpu_secs = cpu(ended.rusage.ru_utime) + cpu(ended.rusage.ru_stime);
-    let after = format!(
-        "after {:.1} s (CPU {cpu_secs:.1} s), peak {}",
-        ended.wall.as_secs_f64(),
-        size(peak)
-    );
-    // The runtime's own noise after a panic or abort says nothing about the cause.
-    let noise = |l: &str| {
-        let l = l.trim();
-        l.is_empty()
-            || l.starts_with("stack backtrace")
-            || l.starts_with("skipping backtrace")
-            || l.starts_with("note: ")
-    };
-    let last_words = ended
-        .stderr_tail
-        .iter()
-        .rev()
-        .find(|l| !noise(l))
-        .map(|l| format!("; its last words: \"{}\"", crate::text::bounded(l, 300)))
-        .unwrap_or_default();
+    let cpu_secs = cpu_seconds(&ended.rusage);
+    let after = after_text(&ended, cpu_secs);
+    let last_words = last_words(&ended.stderr_tail);
     match ended.killed {
         Some(KillReason::Abandoned) => return WorkerOutcome::Abandoned,
         Some(KillReason::Deadline) => {
@@ -544,33 +524,7 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
         && libc::WIFSIGNALED(status)
     {
         let sig = libc::WTERMSIG(status);
-        let out_of_memory = ended
-            .stderr_tail
-            .iter()
-            .any(|l| l.contains("memory allocation of"));
-        let (kind, why) = if out_of_memory {
-            (
-                FailureKind::OutOfMemory,
-                format!(
-                    " (out of memory: job_memory_mb = {})",
-                    limits.memory_bytes >> 20
-                ),
-            )
-        } else if sig == libc::SIGXCPU
-            || (sig == libc::SIGKILL && cpu_secs >= limits.cpu_secs as f64)
-        {
-            (
-                FailureKind::CpuLimit,
-                format!(" (CPU time limit: job_cpu_secs = {})", limits.cpu_secs),
-            )
-        } else if sig == libc::SIGKILL {
-            (
-                FailureKind::WorkerKilled,
-                " (not by scanmill: the kernel's out-of-memory killer or an operator)".into(),
-            )
-        } else {
-            (FailureKind::WorkerCrashed, String::new())
-        };
+        let (kind, why) = signal_cause(sig, &ended.stderr_tail, cpu_secs, limits);
         return WorkerOutcome::Failed(ProcessFailure::worker(
             kind,
             format!(
@@ -579,6 +533,78 @@ fn interpret(ended: Ended, limits: &WorkerLimits) -> WorkerOutcome {
             ),
         ));
     }
+    exit_outcome(ended, &after, &last_words)
+}
+
+/// User plus system CPU time, in seconds.
+fn cpu_seconds(rusage: &libc::rusage) -> f64 {
+    let cpu = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    cpu(rusage.ru_utime) + cpu(rusage.ru_stime)
+}
+
+/// "after 2.1 s (CPU 1.9 s), peak 312 MB".
+fn after_text(ended: &Ended, cpu_secs: f64) -> String {
+    let peak = (ended.rusage.ru_maxrss.max(0) as u64) << 10;
+    format!(
+        "after {:.1} s (CPU {cpu_secs:.1} s), peak {}",
+        ended.wall.as_secs_f64(),
+        size(peak)
+    )
+}
+
+/// The worker's last meaningful stderr line, as a clause to append ("" when none).
+fn last_words(stderr_tail: &[String]) -> String {
+    // The runtime's own noise after a panic or abort says nothing about the cause.
+    let noise = |l: &str| {
+        let l = l.trim();
+        l.is_empty()
+            || l.starts_with("stack backtrace")
+            || l.starts_with("skipping backtrace")
+            || l.starts_with("note: ")
+    };
+    stderr_tail
+        .iter()
+        .rev()
+        .find(|l| !noise(l))
+        .map(|l| format!("; its last words: \"{}\"", crate::text::bounded(l, 300)))
+        .unwrap_or_default()
+}
+
+/// Why a worker died of signal `sig`: the failure kind and a clause explaining it.
+fn signal_cause(
+    sig: libc::c_int,
+    stderr_tail: &[String],
+    cpu_secs: f64,
+    limits: &WorkerLimits,
+) -> (FailureKind, String) {
+    let out_of_memory = stderr_tail
+        .iter()
+        .any(|l| l.contains("memory allocation of"));
+    if out_of_memory {
+        (
+            FailureKind::OutOfMemory,
+            format!(
+                " (out of memory: job_memory_mb = {})",
+                limits.memory_bytes >> 20
+            ),
+        )
+    } else if sig == libc::SIGXCPU || (sig == libc::SIGKILL && cpu_secs >= limits.cpu_secs as f64) {
+        (
+            FailureKind::CpuLimit,
+            format!(" (CPU time limit: job_cpu_secs = {})", limits.cpu_secs),
+        )
+    } else if sig == libc::SIGKILL {
+        (
+            FailureKind::WorkerKilled,
+            " (not by scanmill: the kernel's out-of-memory killer or an operator)".into(),
+        )
+    } else {
+        (FailureKind::WorkerCrashed, String::new())
+    }
+}
+
+/// The outcome of a worker that exited by itself: its final event, if it sent one.
+fn exit_outcome(ended: Ended, after: &str, last_words: &str) -> WorkerOutcome {
     let code = ended.status.map_or(0, |s| libc::WEXITSTATUS(s));
     match ended.final_event {
         Some(Event::Done { report, busy_ms }) if code == 0 => WorkerOutcome::Done {

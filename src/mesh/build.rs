@@ -143,21 +143,8 @@ impl MeshBuilder {
     /// Validates, welds, builds wedges, applies the repair rules and compacts.
     pub fn finish(mut self, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
         self.check_indices()?;
-        // Three independent hash passes (~35-55 ms each on a 400k-triangle scan), side by
-        // side.
-        let (weld, ((texcoords, texcoord_map), (normals, normal_map))) = rayon::join(
-            || self.weld_map(options.weld_tolerance),
-            || {
-                rayon::join(
-                    || {
-                        dedupe_by_bits(&self.texcoords, |t| {
-                            [(t.x + 0.0).to_bits(), (t.y + 0.0).to_bits(), 0]
-                        })
-                    },
-                    || dedupe_by_bits(&self.normals, position_key),
-                )
-            },
-        );
+        let (weld, (texcoords, texcoord_map), (normals, normal_map)) =
+            self.merge_maps(options.weld_tolerance);
         self.report.merged_texcoords = self.texcoords.len() - texcoords.len();
         self.report.merged_normals = self.normals.len() - normals.len();
 
@@ -166,54 +153,16 @@ impl MeshBuilder {
         self.report.dropped_zero_area_faces = dropped[FaceStatus::ZeroArea as usize];
         self.report.dropped_duplicate_faces = dropped[FaceStatus::Duplicate as usize];
 
-        // Wedges: one per distinct (vertex, texcoord, normal), numbered in order of first use.
-        let mut interner = WedgeInterner::new(self.positions.len());
-        let mut triangles: Vec<[Index; 3]> = Vec::with_capacity(kept.len());
-        let mut triangle_materials: Vec<Index> = Vec::new();
-        let has_materials = !self.face_materials.is_empty();
-        for &f in &kept {
-            let face = &self.faces[f as usize];
-            let mut tri = [0; 3];
-            for (k, corner) in face.iter().enumerate() {
-                let wedge = Wedge {
-                    vertex: weld[corner.vertex as usize],
-                    texcoord: corner.texcoord.map(|t| texcoord_map[t as usize]),
-                    normal: corner.normal.map(|n| normal_map[n as usize]),
-                };
-                tri[k] = interner.intern(wedge);
-            }
-            triangles.push(tri);
-            if has_materials {
-                triangle_materials.push(self.face_materials[f as usize]);
-            }
-        }
-        if triangles.is_empty() {
-            let r = &self.report;
-            let reason = if self.faces.is_empty() {
-                "the file has no faces".to_string()
-            } else {
-                format!(
-                    "all {} faces were dropped ({} degenerate, {} zero-area, {} duplicate)",
-                    self.faces.len(),
-                    r.dropped_degenerate_faces,
-                    r.dropped_zero_area_faces,
-                    r.dropped_duplicate_faces
-                )
-            };
-            return Err(MeshError::NoTriangles {
-                path: self.path,
-                reason,
-            });
-        }
-
-        let referenced_before: usize = {
-            // Vertices that survive welding (representatives), before dropping unreferenced ones.
-            weld.iter()
-                .enumerate()
-                .filter(|&(i, &r)| r as usize == i)
-                .count()
+        let maps = CornerMaps {
+            weld: &weld,
+            texcoords: &texcoord_map,
+            normals: &normal_map,
         };
-        self.report.welded_vertices = self.positions.len() - referenced_before;
+        let (interner, triangles, triangle_materials) = self.wedge_triangles(&kept, &maps);
+        if triangles.is_empty() {
+            return Err(self.no_triangles());
+        }
+        self.report.welded_vertices = self.positions.len() - representatives(&weld);
 
         let mut mesh = Mesh {
             positions: self.positions,
@@ -230,6 +179,76 @@ impl MeshBuilder {
         self.report.dropped_unreferenced_vertices = removed.vertices - self.report.welded_vertices;
         debug_assert!(mesh.check_invariants().is_ok());
         Ok((mesh, self.report))
+    }
+
+    /// The weld map of the positions and the distinct texture coordinates and normals with
+    /// their maps: three independent hash passes (~35-55 ms each on a 400k-triangle scan),
+    /// side by side.
+    fn merge_maps(&self, weld_tolerance: f64) -> (Vec<Index>, Deduped<DVec2>, Deduped<DVec3>) {
+        let (weld, (texcoords, normals)) = rayon::join(
+            || self.weld_map(weld_tolerance),
+            || {
+                rayon::join(
+                    || {
+                        dedupe_by_bits(&self.texcoords, |t| {
+                            [(t.x + 0.0).to_bits(), (t.y + 0.0).to_bits(), 0]
+                        })
+                    },
+                    || dedupe_by_bits(&self.normals, position_key),
+                )
+            },
+        );
+        (weld, texcoords, normals)
+    }
+
+    /// The kept faces as triangles of wedges (one per distinct vertex, texcoord and normal,
+    /// numbered in order of first use), with their materials where the faces have them.
+    fn wedge_triangles(
+        &self,
+        kept: &[Index],
+        maps: &CornerMaps<'_>,
+    ) -> (WedgeInterner, Vec<[Index; 3]>, Vec<Index>) {
+        let mut interner = WedgeInterner::new(self.positions.len());
+        let mut triangles: Vec<[Index; 3]> = Vec::with_capacity(kept.len());
+        let mut triangle_materials: Vec<Index> = Vec::new();
+        let has_materials = !self.face_materials.is_empty();
+        for &f in kept {
+            let face = &self.faces[f as usize];
+            let mut tri = [0; 3];
+            for (k, corner) in face.iter().enumerate() {
+                let wedge = Wedge {
+                    vertex: maps.weld[corner.vertex as usize],
+                    texcoord: corner.texcoord.map(|t| maps.texcoords[t as usize]),
+                    normal: corner.normal.map(|n| maps.normals[n as usize]),
+                };
+                tri[k] = interner.intern(wedge);
+            }
+            triangles.push(tri);
+            if has_materials {
+                triangle_materials.push(self.face_materials[f as usize]);
+            }
+        }
+        (interner, triangles, triangle_materials)
+    }
+
+    /// The error when no face survives: the file has none, or all were dropped.
+    fn no_triangles(self) -> MeshError {
+        let r = &self.report;
+        let reason = if self.faces.is_empty() {
+            "the file has no faces".to_string()
+        } else {
+            format!(
+                "all {} faces were dropped ({} degenerate, {} zero-area, {} duplicate)",
+                self.faces.len(),
+                r.dropped_degenerate_faces,
+                r.dropped_zero_area_faces,
+                r.dropped_duplicate_faces
+            )
+        };
+        MeshError::NoTriangles {
+            path: self.path,
+            reason,
+        }
     }
 
     /// Applies the face repair rules in parallel. Returns the faces kept, in file order, and
@@ -419,7 +438,26 @@ pub(crate) fn is_zero_area(a: DVec3, b: DVec3, c: DVec3) -> bool {
 }
 
 /// Merges bit-identical values, keeping first occurrences in order.
-fn dedupe_by_bits<T: Copy>(values: &[T], key: impl Fn(T) -> [u64; 3]) -> (Vec<T>, Vec<Index>) {
+/// Distinct values, and where each original value went among them.
+type Deduped<T> = (Vec<T>, Vec<Index>);
+
+/// Where a file's corner indices go: its vertex to the welded vertex, its texture
+/// coordinate and normal to the distinct ones.
+struct CornerMaps<'a> {
+    weld: &'a [Index],
+    texcoords: &'a [Index],
+    normals: &'a [Index],
+}
+
+/// Vertices that survive welding (representatives), before dropping unreferenced ones.
+fn representatives(weld: &[Index]) -> usize {
+    weld.iter()
+        .enumerate()
+        .filter(|&(i, &r)| r as usize == i)
+        .count()
+}
+
+fn dedupe_by_bits<T: Copy>(values: &[T], key: impl Fn(T) -> [u64; 3]) -> Deduped<T> {
     let mut first: HashMap<[u64; 3], Index> =
         HashMap::with_capacity_and_hasher(values.len(), Default::default());
     let mut kept = Vec::with_capacity(values.len());

@@ -432,10 +432,12 @@ fn clip(mesh: &mut Mesh, lo: DVec3, hi: DVec3) -> (usize, usize) {
     let old_triangles = std::mem::take(&mut mesh.triangles);
     let old_materials = std::mem::take(&mut mesh.triangle_materials);
     let old_origins = std::mem::take(&mut mesh.triangle_origins);
-    let has_materials = !old_materials.is_empty();
-    let mut triangles = Vec::with_capacity(old_triangles.len());
-    let mut materials = Vec::new();
-    let mut origins = Vec::with_capacity(old_triangles.len());
+    let mut out = Emitted {
+        triangles: Vec::with_capacity(old_triangles.len()),
+        materials: Vec::new(),
+        origins: Vec::with_capacity(old_triangles.len()),
+        has_materials: !old_materials.is_empty(),
+    };
     let (mut kept, mut clipped) = (0, 0);
     let mut clipper = Clipper {
         mesh,
@@ -445,27 +447,9 @@ fn clip(mesh: &mut Mesh, lo: DVec3, hi: DVec3) -> (usize, usize) {
     for (t, &tri) in old_triangles.iter().enumerate() {
         let origin = old_origins.get(t).copied().unwrap_or(t as Index);
         let material = old_materials.get(t).copied().unwrap_or(0);
-        let m = &*clipper.mesh;
-        let corners: [PolyVertex; 3] = tri.map(|w| {
-            let wedge = m.wedges[w as usize];
-            PolyVertex {
-                wedge: w,
-                position: m.positions[wedge.vertex as usize],
-                texcoord: wedge.texcoord.map(|i| m.texcoords[i as usize]),
-                normal: wedge.normal.map(|i| m.normals[i as usize]),
-                color: m.colors.get(wedge.vertex as usize).copied(),
-                carrier: Carrier::Vertex(wedge.vertex),
-            }
-        });
-        let mut emit = |a: Index, b: Index, c: Index| {
-            triangles.push([a, b, c]);
-            origins.push(origin);
-            if has_materials {
-                materials.push(material);
-            }
-        };
+        let corners = clipper.corners(tri);
         if corners.iter().all(|c| inside_box(c.position, lo, hi)) {
-            emit(tri[0], tri[1], tri[2]);
+            out.emit(tri, origin, material);
             kept += 1;
             continue;
         }
@@ -475,6 +459,59 @@ fn clip(mesh: &mut Mesh, lo: DVec3, hi: DVec3) -> (usize, usize) {
         {
             continue; // wholly outside one plane
         }
+        let polygon = clipper.clip_polygon(&corners, &planes);
+        let mut pieces = 0;
+        for piece in clipper.fan(&polygon) {
+            out.emit(piece, origin, material);
+            pieces += 1;
+        }
+        if pieces > 0 {
+            clipped += 1;
+        }
+    }
+    mesh.triangles = out.triangles;
+    mesh.triangle_origins = out.origins;
+    mesh.triangle_materials = out.materials;
+    (kept, clipped)
+}
+
+/// The triangles the clip keeps or makes, with their origins and materials.
+struct Emitted {
+    triangles: Vec<[Index; 3]>,
+    materials: Vec<Index>,
+    origins: Vec<Index>,
+    has_materials: bool,
+}
+
+impl Emitted {
+    fn emit(&mut self, tri: [Index; 3], origin: Index, material: Index) {
+        self.triangles.push(tri);
+        self.origins.push(origin);
+        if self.has_materials {
+            self.materials.push(material);
+        }
+    }
+}
+
+impl Clipper<'_> {
+    /// The corners of a triangle of wedges, with their attributes.
+    fn corners(&self, tri: [Index; 3]) -> [PolyVertex; 3] {
+        let m = &*self.mesh;
+        tri.map(|w| {
+            let wedge = m.wedges[w as usize];
+            PolyVertex {
+                wedge: w,
+                position: m.positions[wedge.vertex as usize],
+                texcoord: wedge.texcoord.map(|i| m.texcoords[i as usize]),
+                normal: wedge.normal.map(|i| m.normals[i as usize]),
+                color: m.colors.get(wedge.vertex as usize).copied(),
+                carrier: Carrier::Vertex(wedge.vertex),
+            }
+        })
+    }
+
+    /// The triangle `corners` clipped by each plane in turn (Sutherland–Hodgman).
+    fn clip_polygon(&mut self, corners: &[PolyVertex; 3], planes: &[Plane; 6]) -> Vec<PolyVertex> {
         let mut polygon: Vec<PolyVertex> = corners.to_vec();
         for (k, plane) in planes.iter().enumerate() {
             if polygon.len() < 3 {
@@ -488,33 +525,29 @@ fn clip(mesh: &mut Mesh, lo: DVec3, hi: DVec3) -> (usize, usize) {
                     next.push(p);
                 }
                 if (dp > 0.0 && dq < 0.0) || (dp < 0.0 && dq > 0.0) {
-                    next.push(clipper.cut(&p, &q, plane, k, &corners));
+                    next.push(self.cut(&p, &q, plane, k, corners));
                 }
             }
             polygon = next;
         }
-        let mut pieces = 0;
-        for i in 1..polygon.len().saturating_sub(1) {
+        polygon
+    }
+
+    /// The clipped polygon as a fan of triangles, without those that have no surface.
+    fn fan<'p>(&'p self, polygon: &'p [PolyVertex]) -> impl Iterator<Item = [Index; 3]> + 'p {
+        (1..polygon.len().saturating_sub(1)).filter_map(move |i| {
             let (a, b, c) = (polygon[0], polygon[i], polygon[i + 1]);
-            let vertex = |p: &PolyVertex| clipper.mesh.wedges[p.wedge as usize].vertex;
+            let vertex = |p: &PolyVertex| self.mesh.wedges[p.wedge as usize].vertex;
             let (va, vb, vc) = (vertex(&a), vertex(&b), vertex(&c));
             if va == vb || vb == vc || va == vc {
-                continue;
+                return None;
             }
             if (b.position - a.position).cross(c.position - a.position) == DVec3::ZERO {
-                continue; // collinear cut points: no surface
+                return None; // collinear cut points: no surface
             }
-            emit(a.wedge, b.wedge, c.wedge);
-            pieces += 1;
-        }
-        if pieces > 0 {
-            clipped += 1;
-        }
+            Some([a.wedge, b.wedge, c.wedge])
+        })
     }
-    mesh.triangles = triangles;
-    mesh.triangle_origins = origins;
-    mesh.triangle_materials = materials;
-    (kept, clipped)
 }
 
 #[cfg(test)]

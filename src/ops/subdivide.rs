@@ -21,80 +21,104 @@ pub fn subdivide(mesh: &Mesh) -> Mesh {
         triangle_origins: Vec::with_capacity(mesh.triangles.len() * 4),
         ..mesh.without_triangles()
     };
-    let mut mid_vertex: HashMap<(Index, Index), Index> = HashMap::default();
-    let mut mid_texcoord: HashMap<(Index, Index), Index> = HashMap::default();
-    let mut mid_normal: HashMap<(Index, Index), Index> = HashMap::default();
-    let mut mid_wedge: HashMap<Wedge, Index> = HashMap::default();
-
+    let mut mids = Midpoints::new(mesh);
     for t in 0..mesh.triangles.len() {
         let w = mesh.triangles[t].map(|i| mesh.wedges[i as usize]);
-        let mut m = [0 as Index; 3];
-        for k in 0..3 {
-            let (a, b) = (w[k], w[(k + 1) % 3]);
-            let vertex = *mid_vertex
-                .entry(pair(a.vertex, b.vertex))
-                .or_insert_with(|| {
-                    let (pa, pb) = (
-                        mesh.positions[a.vertex as usize],
-                        mesh.positions[b.vertex as usize],
-                    );
-                    out.positions.push((pa + pb) * 0.5);
-                    if !mesh.colors.is_empty() {
-                        let (ca, cb) = (
-                            mesh.colors[a.vertex as usize],
-                            mesh.colors[b.vertex as usize],
-                        );
-                        out.colors.push(std::array::from_fn(|i| {
-                            ((ca[i] as u16 + cb[i] as u16) / 2) as u8
-                        }));
-                    }
-                    (out.positions.len() - 1) as Index
-                });
-            let texcoord = match (a.texcoord, b.texcoord) {
-                (Some(ta), Some(tb)) => {
-                    Some(*mid_texcoord.entry(pair(ta, tb)).or_insert_with(|| {
-                        out.texcoords.push(
-                            (mesh.texcoords[ta as usize] + mesh.texcoords[tb as usize]) * 0.5,
-                        );
-                        (out.texcoords.len() - 1) as Index
-                    }))
-                }
-                _ => None,
-            };
-            let normal = match (a.normal, b.normal) {
-                (Some(na), Some(nb)) => {
-                    Some(*mid_normal.entry(pair(na, nb)).or_insert_with(|| {
-                        let n = (mesh.normals[na as usize] + mesh.normals[nb as usize])
-                            .normalize_or_zero();
-                        out.normals.push(n);
-                        (out.normals.len() - 1) as Index
-                    }))
-                }
-                _ => None,
-            };
-            let wedge = Wedge {
-                vertex,
-                texcoord,
-                normal,
-            };
-            m[k] = *mid_wedge.entry(wedge).or_insert_with(|| {
-                out.wedges.push(wedge);
-                (out.wedges.len() - 1) as Index
-            });
-        }
-        let c = mesh.triangles[t];
-        out.triangles.push([c[0], m[0], m[2]]);
-        out.triangles.push([m[0], c[1], m[1]]);
-        out.triangles.push([m[2], m[1], c[2]]);
-        out.triangles.push([m[0], m[1], m[2]]);
-        let origin = mesh.triangle_origin(t);
-        out.triangle_origins.extend([origin; 4]);
-        if !mesh.triangle_materials.is_empty() {
-            out.triangle_materials
-                .extend([mesh.triangle_materials[t]; 4]);
-        }
+        let m: [Index; 3] = std::array::from_fn(|k| mids.wedge(&mut out, w[k], w[(k + 1) % 3]));
+        push_children(&mut out, mesh, t, m);
     }
     out
+}
+
+/// The four children of triangle `t` whose edge midpoints are the wedges `m`, with its
+/// origin and material.
+fn push_children(out: &mut Mesh, mesh: &Mesh, t: usize, m: [Index; 3]) {
+    let c = mesh.triangles[t];
+    out.triangles.push([c[0], m[0], m[2]]);
+    out.triangles.push([m[0], c[1], m[1]]);
+    out.triangles.push([m[2], m[1], c[2]]);
+    out.triangles.push([m[0], m[1], m[2]]);
+    let origin = mesh.triangle_origin(t);
+    out.triangle_origins.extend([origin; 4]);
+    if !mesh.triangle_materials.is_empty() {
+        out.triangle_materials
+            .extend([mesh.triangle_materials[t]; 4]);
+    }
+}
+
+/// The midpoints made so far, each once: of vertices, texture coordinates, normals and
+/// wedges, as indices into the output mesh.
+struct Midpoints<'a> {
+    mesh: &'a Mesh,
+    vertex: HashMap<(Index, Index), Index>,
+    texcoord: HashMap<(Index, Index), Index>,
+    normal: HashMap<(Index, Index), Index>,
+    wedge: HashMap<Wedge, Index>,
+}
+
+impl<'a> Midpoints<'a> {
+    fn new(mesh: &'a Mesh) -> Self {
+        Midpoints {
+            mesh,
+            vertex: HashMap::default(),
+            texcoord: HashMap::default(),
+            normal: HashMap::default(),
+            wedge: HashMap::default(),
+        }
+    }
+
+    /// The midpoint wedge of the edge from wedge `a` to wedge `b`.
+    fn wedge(&mut self, out: &mut Mesh, a: Wedge, b: Wedge) -> Index {
+        let wedge = Wedge {
+            vertex: self.vertex(out, a.vertex, b.vertex),
+            texcoord: match (a.texcoord, b.texcoord) {
+                (Some(ta), Some(tb)) => Some(self.texcoord(out, ta, tb)),
+                _ => None,
+            },
+            normal: match (a.normal, b.normal) {
+                (Some(na), Some(nb)) => Some(self.normal(out, na, nb)),
+                _ => None,
+            },
+        };
+        *self.wedge.entry(wedge).or_insert_with(|| {
+            out.wedges.push(wedge);
+            (out.wedges.len() - 1) as Index
+        })
+    }
+
+    /// The midpoint vertex of `a` and `b`, with the mean of their colours.
+    fn vertex(&mut self, out: &mut Mesh, a: Index, b: Index) -> Index {
+        let mesh = self.mesh;
+        *self.vertex.entry(pair(a, b)).or_insert_with(|| {
+            let (pa, pb) = (mesh.positions[a as usize], mesh.positions[b as usize]);
+            out.positions.push((pa + pb) * 0.5);
+            if !mesh.colors.is_empty() {
+                let (ca, cb) = (mesh.colors[a as usize], mesh.colors[b as usize]);
+                out.colors.push(std::array::from_fn(|i| {
+                    ((ca[i] as u16 + cb[i] as u16) / 2) as u8
+                }));
+            }
+            (out.positions.len() - 1) as Index
+        })
+    }
+
+    fn texcoord(&mut self, out: &mut Mesh, ta: Index, tb: Index) -> Index {
+        let mesh = self.mesh;
+        *self.texcoord.entry(pair(ta, tb)).or_insert_with(|| {
+            out.texcoords
+                .push((mesh.texcoords[ta as usize] + mesh.texcoords[tb as usize]) * 0.5);
+            (out.texcoords.len() - 1) as Index
+        })
+    }
+
+    fn normal(&mut self, out: &mut Mesh, na: Index, nb: Index) -> Index {
+        let mesh = self.mesh;
+        *self.normal.entry(pair(na, nb)).or_insert_with(|| {
+            let n = (mesh.normals[na as usize] + mesh.normals[nb as usize]).normalize_or_zero();
+            out.normals.push(n);
+            (out.normals.len() - 1) as Index
+        })
+    }
 }
 
 /// A scanner-sized test scan made from a real one: subdivided until it has at least `faces`

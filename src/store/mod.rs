@@ -304,6 +304,22 @@ pub(crate) fn cut(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
     format!("{}…", &text[..end]).into()
 }
 
+/// Where a failed attempt leaves its job, in both stores: (job state, retryable, attempt
+/// outcome, final state). Failed for good unless transient; quarantined when transient with
+/// no attempts left; retried later otherwise.
+pub(crate) fn failure_disposition(
+    transient: bool,
+    job: &ClaimedJob,
+) -> (&'static str, i64, &'static str, FinalState) {
+    if !transient {
+        ("failed", 0, "failed", FinalState::Failed)
+    } else if job.attempt >= job.max_attempts {
+        ("quarantined", 0, "quarantined", FinalState::Quarantined)
+    } else {
+        ("failed", 1, "retry", FinalState::RetryLater)
+    }
+}
+
 /// Exponential backoff after `attempts` counted failures: base·2^(attempts-1), capped.
 pub fn backoff_ms(attempts: u32, base_secs: f64, max_secs: f64) -> i64 {
     let exp = attempts.saturating_sub(1).min(30) as i32;
@@ -914,13 +930,7 @@ fn record_failure(
     retry: RetryPolicy,
 ) -> rusqlite::Result<FinalState> {
     let (job, now) = (end.job, end.now);
-    let (state, retryable, outcome, fs) = if !transient {
-        ("failed", 0, "failed", FinalState::Failed)
-    } else if job.attempt >= job.max_attempts {
-        ("quarantined", 0, "quarantined", FinalState::Quarantined)
-    } else {
-        ("failed", 1, "retry", FinalState::RetryLater)
-    };
+    let (state, retryable, outcome, fs) = failure_disposition(transient, job);
     let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
     let message = cut(message, MAX_ERROR_BYTES);
     tx.execute(

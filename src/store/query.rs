@@ -38,6 +38,28 @@ pub struct HistoryRow {
     pub error: Option<String>,
 }
 
+impl HistoryRow {
+    /// A scan that has waited since `first_seen_ms` for a missing member, for `reason`.
+    pub(crate) fn waiting(input: String, first_seen_ms: i64, reason: &str) -> HistoryRow {
+        HistoryRow {
+            id: None,
+            state: "waiting".into(),
+            created: iso_time(first_seen_ms),
+            finished: None,
+            input,
+            recipe: String::new(),
+            attempts: 0,
+            in_faces: None,
+            out_faces: None,
+            process_ms: None,
+            output: None,
+            outputs: Vec::new(),
+            error_kind: Some("waiting".into()),
+            error: Some(bounded(reason, MAX_SHOWN)),
+        }
+    }
+}
+
 pub const STATES: &[&str] = &[
     "queued",
     "running",
@@ -104,50 +126,52 @@ impl Store {
     }
 
     pub fn history(&self, f: &HistoryFilter) -> Result<Vec<HistoryRow>> {
-        let err = |source| StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        };
         let since = f.since_ms.unwrap_or(i64::MIN);
         let glob = f.input_glob.clone().unwrap_or_else(|| "*".into());
         let limit = f.limit.map(|l| l as i64).unwrap_or(-1);
-        let mut rows = Vec::new();
         if f.status.as_deref() == Some("waiting") {
-            let mut stmt = self
-                .conn
-                .prepare(
-                    "SELECT root, rel_path, reason, first_seen FROM waiting
-                     WHERE first_seen >= ?1 AND (root || '/' || rel_path) GLOB ?2
-                     ORDER BY first_seen LIMIT ?3",
-                )
-                .map_err(err)?;
-            let mapped = stmt
-                .query_map(params![since, glob, limit], |r| {
-                    let root: String = r.get(0)?;
-                    let rel: RelPath = r.get(1)?;
-                    Ok(HistoryRow {
-                        id: None,
-                        state: "waiting".into(),
-                        created: iso_time(r.get(3)?),
-                        finished: None,
-                        input: input_display(&root, &rel),
-                        recipe: String::new(),
-                        attempts: 0,
-                        in_faces: None,
-                        out_faces: None,
-                        process_ms: None,
-                        output: None,
-                        outputs: Vec::new(),
-                        error_kind: Some("waiting".into()),
-                        error: Some(bounded(&r.get::<_, String>(2)?, MAX_SHOWN)),
-                    })
-                })
-                .map_err(err)?;
-            for row in mapped {
-                rows.push(row.map_err(err)?);
-            }
-            return Ok(rows);
+            return self.waiting_history(since, &glob, limit);
         }
+        let mut rows = self.job_history(since, f.status.as_deref(), &glob, limit)?;
+        self.fill_output_names(&mut rows)
+            .map_err(self.sqlite_err())?;
+        Ok(rows)
+    }
+
+    /// Maps a rusqlite error to this store's error.
+    fn sqlite_err(&self) -> impl Fn(rusqlite::Error) -> StoreError + '_ {
+        |source| StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    /// The scans that wait for a missing member, as history rows.
+    fn waiting_history(&self, since: i64, glob: &str, limit: i64) -> Result<Vec<HistoryRow>> {
+        let err = self.sqlite_err();
+        let mut stmt = self
+            .conn
+            .prepare(
+                "SELECT root, rel_path, reason, first_seen FROM waiting
+                 WHERE first_seen >= ?1 AND (root || '/' || rel_path) GLOB ?2
+                 ORDER BY first_seen LIMIT ?3",
+            )
+            .map_err(&err)?;
+        let mapped = stmt
+            .query_map(params![since, glob, limit], waiting_row)
+            .map_err(&err)?;
+        mapped.collect::<rusqlite::Result<Vec<_>>>().map_err(err)
+    }
+
+    /// The jobs that pass the filter, without their output names.
+    fn job_history(
+        &self,
+        since: i64,
+        status: Option<&str>,
+        glob: &str,
+        limit: i64,
+    ) -> Result<Vec<HistoryRow>> {
+        let err = self.sqlite_err();
         let mut stmt = self
             .conn
             .prepare(
@@ -157,35 +181,11 @@ impl Store {
                  WHERE created_at >= ?1 AND (?2 IS NULL OR state = ?2) AND (root || '/' || rel_path) GLOB ?3
                  ORDER BY id LIMIT ?4",
             )
-            .map_err(err)?;
+            .map_err(&err)?;
         let mapped = stmt
-            .query_map(params![since, f.status, glob, limit], |r| {
-                Ok(HistoryRow {
-                    id: Some(r.get(0)?),
-                    state: r.get(1)?,
-                    created: iso_time(r.get(2)?),
-                    finished: r.get::<_, Option<i64>>(3)?.map(iso_time),
-                    input: input_display(&r.get::<_, String>(4)?, &r.get::<_, RelPath>(13)?),
-                    recipe: r.get(5)?,
-                    attempts: r.get(6)?,
-                    in_faces: r.get(7)?,
-                    out_faces: r.get(8)?,
-                    process_ms: r.get(9)?,
-                    output: r.get::<_, Option<String>>(10)?.map(|o| escape_str(&o)),
-                    outputs: Vec::new(),
-                    error_kind: r.get(11)?,
-                    error: r
-                        .get::<_, Option<String>>(12)?
-                        .map(|e| bounded(&e, MAX_SHOWN)),
-                })
-            })
-            .map_err(err)?;
-        for row in mapped {
-            rows.push(row.map_err(err)?);
-        }
-        drop(stmt);
-        self.fill_output_names(&mut rows).map_err(err)?;
-        Ok(rows)
+            .query_map(params![since, status, glob, limit], job_history_row)
+            .map_err(&err)?;
+        mapped.collect::<rusqlite::Result<Vec<_>>>().map_err(err)
     }
 
     /// Fills [`HistoryRow::outputs`] from the recorded output files.
@@ -208,112 +208,163 @@ impl Store {
     /// Everything recorded about a job, as JSON: the job, its inputs, outputs, every
     /// attempt with its step timings, where else its input was seen, and the report.
     pub fn show(&self, id: i64) -> Result<Value> {
-        let err = |source| StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        };
-        let conn = &self.conn;
-        let job = conn
+        let mut job = self.job_json(id)?;
+        let inputs = self.child_rows(
+            "SELECT rel_path, role, size, mtime_ns, ino, sha256 FROM job_input WHERE job_id=?1 ORDER BY rowid",
+            id,
+        )?;
+        let outputs = self.child_rows(
+            "SELECT path, bytes, sha256 FROM job_output WHERE job_id=?1 ORDER BY path",
+            id,
+        )?;
+        let sightings = self.child_rows(
+            "SELECT root, rel_path, seen_at FROM sighting WHERE job_id=?1 ORDER BY seen_at",
+            id,
+        )?;
+        let mut attempts = self.child_rows(
+            "SELECT id, n, owner, host, app_version, started_at, finished_at, outcome, error_kind, error, wall_ms
+             FROM attempt WHERE job_id=?1 ORDER BY id",
+            id,
+        )?;
+        for attempt in &mut attempts {
+            let attempt_id = attempt["id"].as_i64().unwrap_or(0);
+            attempt["steps"] = Value::Array(self.step_timings(attempt_id)?);
+        }
+        escape_row(&mut job);
+        job["inputs"] = escaped(inputs);
+        job["outputs"] = escaped(outputs);
+        job["attempts_log"] = escaped(attempts);
+        job["sightings"] = escaped(sightings);
+        Ok(job)
+    }
+
+    /// The job's own row, every column by name (`_json` columns parsed, times as ISO text).
+    fn job_json(&self, id: i64) -> Result<Value> {
+        self.conn
             .query_row("SELECT * FROM job WHERE id=?1", [id], |r| {
                 let mut map = serde_json::Map::new();
                 let stmt = r.as_ref();
                 for i in 0..stmt.column_count() {
                     let name = stmt.column_name(i)?.to_string();
-                    let value = sql_value(r.get_ref(i)?);
-                    let value = match (name.as_str(), &value) {
-                        ("report_json" | "recipe_json", Value::String(s)) => {
-                            serde_json::from_str(s).unwrap_or(value)
-                        }
-                        (n, Value::Number(ms)) if n.ends_with("_at") || n == "run_after" => {
-                            json!(iso_time(ms.as_i64().unwrap_or(0)))
-                        }
-                        _ => value,
-                    };
+                    let value = job_column_value(&name, sql_value(r.get_ref(i)?));
                     map.insert(name.trim_end_matches("_json").to_string(), value);
                 }
                 Ok(Value::Object(map))
             })
             .optional()
-            .map_err(err)?
-            .ok_or(StoreError::NoSuchJob(id))?;
-        let table = |sql: &str| -> Result<Vec<Value>> {
-            let mut stmt = conn.prepare(sql).map_err(err)?;
-            let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
-            let rows = stmt
-                .query_map([id], |r| {
-                    let mut map = serde_json::Map::new();
-                    for (i, name) in names.iter().enumerate() {
-                        let mut value = sql_value(r.get_ref(i)?);
-                        if let (true, Value::Number(ms)) = (name.ends_with("_at"), &value) {
-                            value = json!(iso_time(ms.as_i64().unwrap_or(0)));
-                        }
-                        if name.ends_with("_json")
-                            && let Value::String(s) = &value
-                        {
-                            value = serde_json::from_str(s).unwrap_or(value);
-                        }
-                        map.insert(name.trim_end_matches("_json").to_string(), value);
-                    }
-                    Ok(Value::Object(map))
-                })
-                .map_err(err)?;
-            rows.collect::<rusqlite::Result<Vec<_>>>().map_err(err)
-        };
-        let inputs = table(
-            "SELECT rel_path, role, size, mtime_ns, ino, sha256 FROM job_input WHERE job_id=?1 ORDER BY rowid",
-        )?;
-        let outputs =
-            table("SELECT path, bytes, sha256 FROM job_output WHERE job_id=?1 ORDER BY path")?;
-        let sightings =
-            table("SELECT root, rel_path, seen_at FROM sighting WHERE job_id=?1 ORDER BY seen_at")?;
-        let mut attempts = table(
-            "SELECT id, n, owner, host, app_version, started_at, finished_at, outcome, error_kind, error, wall_ms
-             FROM attempt WHERE job_id=?1 ORDER BY id",
-        )?;
-        for attempt in &mut attempts {
-            let attempt_id = attempt["id"].as_i64().unwrap_or(0);
-            let mut stmt = conn
-                .prepare(
-                    "SELECT idx, kind, wall_ms, vertices_before, vertices_after, faces_before, faces_after, figures_json
-                     FROM step_timing WHERE attempt_id=?1 ORDER BY idx",
-                )
-                .map_err(err)?;
-            let steps = stmt
-                .query_map([attempt_id], |r| {
-                    Ok(json!({
-                        "index": r.get::<_, i64>(0)?,
-                        "kind": r.get::<_, String>(1)?,
-                        "wall_ms": r.get::<_, f64>(2)?,
-                        "vertices_before": r.get::<_, i64>(3)?,
-                        "vertices_after": r.get::<_, i64>(4)?,
-                        "faces_before": r.get::<_, i64>(5)?,
-                        "faces_after": r.get::<_, i64>(6)?,
-                        "figures": serde_json::from_str::<Value>(&r.get::<_, String>(7)?).unwrap_or(Value::Null),
-                    }))
-                })
-                .map_err(err)?
-                .collect::<rusqlite::Result<Vec<_>>>()
-                .map_err(err)?;
-            attempt["steps"] = Value::Array(steps);
-        }
-        let mut job = job;
-        escape_row(&mut job);
-        let escaped = |mut rows: Vec<Value>| {
-            rows.iter_mut().for_each(escape_row);
-            Value::Array(rows)
-        };
-        let (inputs, outputs, attempts, sightings) = (
-            escaped(inputs),
-            escaped(outputs),
-            escaped(attempts),
-            escaped(sightings),
-        );
-        job["inputs"] = inputs;
-        job["outputs"] = outputs;
-        job["attempts_log"] = attempts;
-        job["sightings"] = sightings;
-        Ok(job)
+            .map_err(self.sqlite_err())?
+            .ok_or(StoreError::NoSuchJob(id))
     }
+
+    /// The rows of `sql` (one `?1`, the job or attempt id) as JSON objects by column name.
+    fn child_rows(&self, sql: &str, id: i64) -> Result<Vec<Value>> {
+        let err = self.sqlite_err();
+        let mut stmt = self.conn.prepare(sql).map_err(&err)?;
+        let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
+        let rows = stmt
+            .query_map([id], |r| {
+                let mut map = serde_json::Map::new();
+                for (i, name) in names.iter().enumerate() {
+                    let value = child_column_value(name, sql_value(r.get_ref(i)?));
+                    map.insert(name.trim_end_matches("_json").to_string(), value);
+                }
+                Ok(Value::Object(map))
+            })
+            .map_err(&err)?;
+        rows.collect::<rusqlite::Result<Vec<_>>>().map_err(err)
+    }
+
+    /// An attempt's step timings, in step order.
+    fn step_timings(&self, attempt_id: i64) -> Result<Vec<Value>> {
+        let err = self.sqlite_err();
+        let mut stmt = self
+            .conn
+            .prepare(
+                "SELECT idx, kind, wall_ms, vertices_before, vertices_after, faces_before, faces_after, figures_json
+                 FROM step_timing WHERE attempt_id=?1 ORDER BY idx",
+            )
+            .map_err(&err)?;
+        stmt.query_map([attempt_id], |r| {
+            Ok(json!({
+                "index": r.get::<_, i64>(0)?,
+                "kind": r.get::<_, String>(1)?,
+                "wall_ms": r.get::<_, f64>(2)?,
+                "vertices_before": r.get::<_, i64>(3)?,
+                "vertices_after": r.get::<_, i64>(4)?,
+                "faces_before": r.get::<_, i64>(5)?,
+                "faces_after": r.get::<_, i64>(6)?,
+                "figures": serde_json::from_str::<Value>(&r.get::<_, String>(7)?).unwrap_or(Value::Null),
+            }))
+        })
+        .map_err(&err)?
+        .collect::<rusqlite::Result<Vec<_>>>()
+        .map_err(err)
+    }
+}
+
+/// A `waiting` row as a history row.
+fn waiting_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<HistoryRow> {
+    let root: String = r.get(0)?;
+    let rel: RelPath = r.get(1)?;
+    Ok(HistoryRow::waiting(
+        input_display(&root, &rel),
+        r.get(3)?,
+        &r.get::<_, String>(2)?,
+    ))
+}
+
+/// A row of `job_history`'s query as a history row.
+fn job_history_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<HistoryRow> {
+    Ok(HistoryRow {
+        id: Some(r.get(0)?),
+        state: r.get(1)?,
+        created: iso_time(r.get(2)?),
+        finished: r.get::<_, Option<i64>>(3)?.map(iso_time),
+        input: input_display(&r.get::<_, String>(4)?, &r.get::<_, RelPath>(13)?),
+        recipe: r.get(5)?,
+        attempts: r.get(6)?,
+        in_faces: r.get(7)?,
+        out_faces: r.get(8)?,
+        process_ms: r.get(9)?,
+        output: r.get::<_, Option<String>>(10)?.map(|o| escape_str(&o)),
+        outputs: Vec::new(),
+        error_kind: r.get(11)?,
+        error: r
+            .get::<_, Option<String>>(12)?
+            .map(|e| bounded(&e, MAX_SHOWN)),
+    })
+}
+
+/// A column of the job's row as shown: the report and recipe parsed, times as ISO text.
+fn job_column_value(name: &str, value: Value) -> Value {
+    match (name, &value) {
+        ("report_json" | "recipe_json", Value::String(s)) => {
+            serde_json::from_str(s).unwrap_or(value)
+        }
+        (n, Value::Number(ms)) if n.ends_with("_at") || n == "run_after" => {
+            json!(iso_time(ms.as_i64().unwrap_or(0)))
+        }
+        _ => value,
+    }
+}
+
+/// A column of a child table's row as shown: `_at` times as ISO text, `_json` parsed.
+fn child_column_value(name: &str, mut value: Value) -> Value {
+    if let (true, Value::Number(ms)) = (name.ends_with("_at"), &value) {
+        value = json!(iso_time(ms.as_i64().unwrap_or(0)));
+    }
+    if name.ends_with("_json")
+        && let Value::String(s) = &value
+    {
+        value = serde_json::from_str(s).unwrap_or(value);
+    }
+    value
+}
+
+/// Rows made printable, as a JSON array.
+fn escaped(mut rows: Vec<Value>) -> Value {
+    rows.iter_mut().for_each(escape_row);
+    Value::Array(rows)
 }
 
 /// `root/rel_path` as shown: escaped, any bytes.

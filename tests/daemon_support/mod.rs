@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-pub const DATA: &str = "../shared/data";
+// Every test crate that has `mod daemon_support;` has `mod common;` too.
+pub use crate::common::DATA;
 pub const BIN: &str = env!("CARGO_BIN_EXE_scanmill");
 
 pub fn james_dir() -> PathBuf {
@@ -20,6 +21,24 @@ pub fn bunny() -> Vec<u8> {
 }
 
 /// The bunny with one more header comment, so that every copy has its own content hash.
+/// `scanmill daemon --config CONFIG` logging at info to `log`, outside systemd, with `envs`
+/// set.
+pub fn daemon_command(config: &Path, log: std::fs::File, envs: &[(&str, &str)]) -> Command {
+    let mut cmd = Command::new(BIN);
+    cmd.args(["daemon", "--config"])
+        .arg(config)
+        .env("SCANMILL_LOG", "info")
+        .env_remove("NOTIFY_SOCKET")
+        .env_remove("JOURNAL_STREAM")
+        .env_remove("SCANMILL_TEST_STEP_DELAY_MS")
+        .stdout(Stdio::null())
+        .stderr(log);
+    for (k, v) in envs {
+        cmd.env(k, v);
+    }
+    cmd
+}
+
 pub fn bunny_variant(tag: &str) -> Vec<u8> {
     let b = bunny();
     let at = b.windows(11).position(|w| w == b"comment zip").unwrap();
@@ -83,19 +102,7 @@ impl Lab {
             })
             .count();
         let log = std::fs::File::create(self.dir.path().join(format!("log-{n}.txt"))).unwrap();
-        let mut cmd = Command::new(BIN);
-        cmd.args(["daemon", "--config"])
-            .arg(&self.config)
-            .env("SCANMILL_LOG", "info")
-            .env_remove("NOTIFY_SOCKET")
-            .env_remove("JOURNAL_STREAM")
-            .env_remove("SCANMILL_TEST_STEP_DELAY_MS")
-            .stdout(Stdio::null())
-            .stderr(log);
-        for (k, v) in envs {
-            cmd.env(k, v);
-        }
-        let child = cmd.spawn().unwrap();
+        let child = daemon_command(&self.config, log, envs).spawn().unwrap();
         // Ready once the database exists and the first walk is done ("ready" logged).
         let path = self.dir.path().join(format!("log-{n}.txt"));
         assert!(

@@ -3,7 +3,7 @@
 
 use crate::mesh::error::{MeshError, Result};
 use crate::mesh::files;
-use crate::mesh::model::{Index, MapFile, Mesh};
+use crate::mesh::model::{Index, MapFile, Mesh, Wedge};
 use crate::mesh::{mtl, texture};
 use std::collections::HashMap;
 use std::io::Write;
@@ -189,6 +189,16 @@ impl Out {
         self.buf.extend_from_slice(s.as_bytes());
     }
 
+    /// `x y z`.
+    #[inline]
+    fn xyz(&mut self, p: &glam::DVec3) {
+        self.float(p.x);
+        self.bytes(b" ");
+        self.float(p.y);
+        self.bytes(b" ");
+        self.float(p.z);
+    }
+
     #[inline]
     fn int(&mut self, x: u64) {
         let s = self.itoa.format(x);
@@ -230,30 +240,7 @@ fn write_obj_body(mesh: &Mesh, mtl_name: Option<&str>, out: &mut Out) -> std::io
         out.bytes(name.as_bytes());
         out.bytes(b"\n");
     }
-    // Colours as c/255 with 4 decimals: enough to read back the same byte.
-    let colour_text: Vec<String> = if mesh.colors.is_empty() {
-        Vec::new()
-    } else {
-        (0..=255u32)
-            .map(|c| format!("{:.4}", c as f64 / 255.0))
-            .collect()
-    };
-    for (i, p) in mesh.positions.iter().enumerate() {
-        out.bytes(b"v ");
-        out.float(p.x);
-        out.bytes(b" ");
-        out.float(p.y);
-        out.bytes(b" ");
-        out.float(p.z);
-        if let Some(c) = mesh.colors.get(i) {
-            for &channel in &c[..3] {
-                out.bytes(b" ");
-                out.bytes(colour_text[channel as usize].as_bytes());
-            }
-        }
-        out.bytes(b"\n");
-        out.flush_if_full()?;
-    }
+    write_vertices(mesh, out)?;
     for t in &mesh.texcoords {
         out.bytes(b"vt ");
         out.float(t.x);
@@ -264,15 +251,40 @@ fn write_obj_body(mesh: &Mesh, mtl_name: Option<&str>, out: &mut Out) -> std::io
     }
     for n in &mesh.normals {
         out.bytes(b"vn ");
-        out.float(n.x);
-        out.bytes(b" ");
-        out.float(n.y);
-        out.bytes(b" ");
-        out.float(n.z);
+        out.xyz(n);
         out.bytes(b"\n");
         out.flush_if_full()?;
     }
-    let with_materials = mtl_name.is_some();
+    write_faces(mesh, mtl_name.is_some(), out)
+}
+
+/// The `v` lines, with the vertex colours where the mesh has them.
+fn write_vertices(mesh: &Mesh, out: &mut Out) -> std::io::Result<()> {
+    // Colours as c/255 with 4 decimals: enough to read back the same byte.
+    let colour_text: Vec<String> = if mesh.colors.is_empty() {
+        Vec::new()
+    } else {
+        (0..=255u32)
+            .map(|c| format!("{:.4}", c as f64 / 255.0))
+            .collect()
+    };
+    for (i, p) in mesh.positions.iter().enumerate() {
+        out.bytes(b"v ");
+        out.xyz(p);
+        if let Some(c) = mesh.colors.get(i) {
+            for &channel in &c[..3] {
+                out.bytes(b" ");
+                out.bytes(colour_text[channel as usize].as_bytes());
+            }
+        }
+        out.bytes(b"\n");
+        out.flush_if_full()?;
+    }
+    Ok(())
+}
+
+/// The `f` lines, each preceded by `usemtl` where the material changes (with materials).
+fn write_faces(mesh: &Mesh, with_materials: bool, out: &mut Out) -> std::io::Result<()> {
     let mut current: Option<Index> = None;
     for (t, tri) in mesh.triangles.iter().enumerate() {
         if with_materials {
@@ -290,29 +302,33 @@ fn write_obj_body(mesh: &Mesh, mtl_name: Option<&str>, out: &mut Out) -> std::io
         }
         out.bytes(b"f");
         for &w in tri {
-            let wedge = mesh.wedges[w as usize];
             out.bytes(b" ");
-            out.int(wedge.vertex as u64 + 1);
-            match (wedge.texcoord, wedge.normal) {
-                (None, None) => {}
-                (Some(vt), None) => {
-                    out.bytes(b"/");
-                    out.int(vt as u64 + 1);
-                }
-                (None, Some(vn)) => {
-                    out.bytes(b"//");
-                    out.int(vn as u64 + 1);
-                }
-                (Some(vt), Some(vn)) => {
-                    out.bytes(b"/");
-                    out.int(vt as u64 + 1);
-                    out.bytes(b"/");
-                    out.int(vn as u64 + 1);
-                }
-            }
+            write_corner(mesh.wedges[w as usize], out);
         }
         out.bytes(b"\n");
         out.flush_if_full()?;
     }
     Ok(())
+}
+
+/// A face corner: `v`, `v/vt`, `v//vn` or `v/vt/vn` (1-based).
+fn write_corner(wedge: Wedge, out: &mut Out) {
+    out.int(wedge.vertex as u64 + 1);
+    match (wedge.texcoord, wedge.normal) {
+        (None, None) => {}
+        (Some(vt), None) => {
+            out.bytes(b"/");
+            out.int(vt as u64 + 1);
+        }
+        (None, Some(vn)) => {
+            out.bytes(b"//");
+            out.int(vn as u64 + 1);
+        }
+        (Some(vt), Some(vn)) => {
+            out.bytes(b"/");
+            out.int(vt as u64 + 1);
+            out.bytes(b"/");
+            out.int(vn as u64 + 1);
+        }
+    }
 }

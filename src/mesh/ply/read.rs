@@ -261,99 +261,21 @@ fn read_vertices<S: Source>(
     src: &mut S,
     raw: &mut Raw,
 ) -> Result<()> {
-    let has = |name: &str| element.property(name).is_some();
-    for axis in ["x", "y", "z"] {
-        match element.property(axis) {
-            Some((_, p)) if matches!(p.kind, PropertyKind::Scalar(_)) => {}
-            _ => {
-                return Err(MeshError::malformed(
-                    path,
-                    Location::Header,
-                    format!("element vertex has no scalar property {axis}"),
-                ));
-            }
-        }
-    }
-    let normals = ["nx", "ny", "nz"].iter().all(|n| has(n));
-    let color_prefix = ["", "diffuse_"].into_iter().find(|prefix| {
-        ["red", "green", "blue"]
-            .iter()
-            .all(|c| has(&format!("{prefix}{c}")))
-    });
-    let uv_names = [
-        ("s", "t"),
-        ("u", "v"),
-        ("texture_u", "texture_v"),
-        ("texture_s", "texture_t"),
-    ]
-    .into_iter()
-    .find(|(u, v)| has(u) && has(v));
-
-    let mut slots = vec![SKIP; element.properties.len()];
-    let mut scalar_types = [Scalar::F32; SLOTS];
-    for (k, p) in element.properties.iter().enumerate() {
-        let name = p.name.as_str();
-        let slot = match name {
-            "x" => X,
-            "y" => X + 1,
-            "z" => X + 2,
-            "nx" if normals => NX,
-            "ny" if normals => NX + 1,
-            "nz" if normals => NX + 2,
-            _ if uv_names.is_some_and(|(u, _)| u == name) => U,
-            _ if uv_names.is_some_and(|(_, v)| v == name) => U + 1,
-            _ => match color_prefix.and_then(|prefix| name.strip_prefix(prefix)) {
-                Some("red") => RED,
-                Some("green") => RED + 1,
-                Some("blue") => RED + 2,
-                Some("alpha") => ALPHA,
-                _ => SKIP,
-            },
-        };
-        match (slot, p.kind) {
-            (SKIP, _) => raw.skipped.push(format!("vertex.{name}")),
-            (_, PropertyKind::Scalar(ty)) => scalar_types[slot] = ty,
-            (_, PropertyKind::List { .. }) => {
-                // A list where a scalar is expected: not something we can use.
-                slots[k] = SKIP;
-                raw.skipped.push(format!("vertex.{name} (a list)"));
-                continue;
-            }
-        }
-        slots[k] = slot;
-    }
-    let has_alpha = slots.contains(&ALPHA);
-
-    let cap = capacity(src, element, &[]);
-    raw.positions.reserve(cap);
-    if normals {
-        raw.normals.reserve(cap);
-    }
-    if color_prefix.is_some() {
-        raw.colors.reserve(cap);
-    }
-    if uv_names.is_some() {
-        raw.vertex_uvs.reserve(cap);
-    }
-    let to_byte = |value: f64, ty: Scalar| -> u8 {
-        let scaled = match ty {
-            Scalar::F32 | Scalar::F64 => value * 255.0,
-            Scalar::U16 => value / 257.0,
-            _ => value,
-        };
-        // NaN saturates to 0.
-        scaled.round().clamp(0.0, 255.0) as u8
-    };
+    check_positions(path, element)?;
+    let layout = VertexLayout::of(element, &mut raw.skipped);
+    layout.reserve(raw, capacity(src, element, &[]));
+    let VertexLayout {
+        normals,
+        colors,
+        uvs,
+        ref slots,
+        scalar_types,
+    } = layout;
     let mut values = [0.0f64; SLOTS];
     values[ALPHA] = 255.0;
-    scalar_types[ALPHA] = if has_alpha {
-        scalar_types[ALPHA]
-    } else {
-        Scalar::U8
-    };
 
     for_each(path, element, src, |src, _| {
-        for (p, &slot) in element.properties.iter().zip(&slots) {
+        for (p, &slot) in element.properties.iter().zip(slots) {
             match p.kind {
                 PropertyKind::Scalar(ty) => values[slot] = src.value(ty)?,
                 list => src.skip(list)?,
@@ -371,23 +293,133 @@ fn read_vertices<S: Source>(
             raw.normals
                 .push(DVec3::new(values[NX], values[NX + 1], values[NX + 2]));
         }
-        if color_prefix.is_some() {
+        if colors {
             raw.colors.push(std::array::from_fn(|c| {
                 to_byte(values[RED + c], scalar_types[RED + c])
             }));
         }
-        if uv_names.is_some() {
-            let uv = DVec2::new(values[U], values[U + 1]);
-            if !uv.is_finite() {
-                return Err(Fault::NonFinite(format!(
-                    "texture coordinate {} {}",
-                    uv.x, uv.y
-                )));
-            }
-            raw.vertex_uvs.push(uv);
+        if uvs {
+            raw.vertex_uvs.push(finite_uv(values[U], values[U + 1])?);
         }
         Ok(())
     })
+}
+
+/// Refuses a vertex element without scalar `x`, `y` and `z`.
+fn check_positions(path: &Path, element: &Element) -> Result<()> {
+    for axis in ["x", "y", "z"] {
+        match element.property(axis) {
+            Some((_, p)) if matches!(p.kind, PropertyKind::Scalar(_)) => {}
+            _ => {
+                return Err(MeshError::malformed(
+                    path,
+                    Location::Header,
+                    format!("element vertex has no scalar property {axis}"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Where each property of a vertex element goes: a slot per property (`SKIP` for what is
+/// not read) and the scalar type of each slot, with which attributes are present.
+struct VertexLayout {
+    normals: bool,
+    colors: bool,
+    uvs: bool,
+    slots: Vec<usize>,
+    scalar_types: [Scalar; SLOTS],
+}
+
+impl VertexLayout {
+    /// The layout of `element`; the properties it does not read go to `skipped`.
+    fn of(element: &Element, skipped: &mut Vec<String>) -> VertexLayout {
+        let has = |name: &str| element.property(name).is_some();
+        let normals = ["nx", "ny", "nz"].iter().all(|n| has(n));
+        let color_prefix = ["", "diffuse_"].into_iter().find(|prefix| {
+            ["red", "green", "blue"]
+                .iter()
+                .all(|c| has(&format!("{prefix}{c}")))
+        });
+        let uv_names = [
+            ("s", "t"),
+            ("u", "v"),
+            ("texture_u", "texture_v"),
+            ("texture_s", "texture_t"),
+        ]
+        .into_iter()
+        .find(|(u, v)| has(u) && has(v));
+
+        let mut slots = vec![SKIP; element.properties.len()];
+        let mut scalar_types = [Scalar::F32; SLOTS];
+        for (k, p) in element.properties.iter().enumerate() {
+            let name = p.name.as_str();
+            let slot = match name {
+                "x" => X,
+                "y" => X + 1,
+                "z" => X + 2,
+                "nx" if normals => NX,
+                "ny" if normals => NX + 1,
+                "nz" if normals => NX + 2,
+                _ if uv_names.is_some_and(|(u, _)| u == name) => U,
+                _ if uv_names.is_some_and(|(_, v)| v == name) => U + 1,
+                _ => match color_prefix.and_then(|prefix| name.strip_prefix(prefix)) {
+                    Some("red") => RED,
+                    Some("green") => RED + 1,
+                    Some("blue") => RED + 2,
+                    Some("alpha") => ALPHA,
+                    _ => SKIP,
+                },
+            };
+            match (slot, p.kind) {
+                (SKIP, _) => skipped.push(format!("vertex.{name}")),
+                (_, PropertyKind::Scalar(ty)) => scalar_types[slot] = ty,
+                (_, PropertyKind::List { .. }) => {
+                    // A list where a scalar is expected: not something we can use.
+                    slots[k] = SKIP;
+                    skipped.push(format!("vertex.{name} (a list)"));
+                    continue;
+                }
+            }
+            slots[k] = slot;
+        }
+        if !slots.contains(&ALPHA) {
+            scalar_types[ALPHA] = Scalar::U8;
+        }
+        VertexLayout {
+            normals,
+            colors: color_prefix.is_some(),
+            uvs: uv_names.is_some(),
+            slots,
+            scalar_types,
+        }
+    }
+
+    /// Reserves room for `cap` vertices in what this layout fills.
+    fn reserve(&self, raw: &mut Raw, cap: usize) {
+        raw.positions.reserve(cap);
+        if self.normals {
+            raw.normals.reserve(cap);
+        }
+        if self.colors {
+            raw.colors.reserve(cap);
+        }
+        if self.uvs {
+            raw.vertex_uvs.reserve(cap);
+        }
+    }
+}
+
+/// A colour channel as a byte: floats scale from 0..1, 16-bit values from 0..65535.
+fn to_byte(value: f64, ty: Scalar) -> u8 {
+    let scaled = match ty {
+        Scalar::F32 | Scalar::F64 => value * 255.0,
+        Scalar::U16 => value / 257.0,
+        _ => value,
+    };
+    // NaN saturates to 0.
+    scaled.round().clamp(0.0, 255.0) as u8
 }
 
 fn read_faces<S: Source>(
@@ -403,40 +435,12 @@ fn read_faces<S: Source>(
         "vertex_index"
     };
     require_integer_list(path, element, index_name)?;
-    #[derive(Clone, Copy, PartialEq)]
-    enum Role {
-        Skip,
-        Indices,
-        Texcoords,
-        TexNumber,
-    }
-    let roles: Vec<Role> = element
-        .properties
-        .iter()
-        .map(|p| match (p.name.as_str(), p.kind) {
-            (name, PropertyKind::List { .. }) if name == index_name => Role::Indices,
-            ("texcoord", PropertyKind::List { .. }) => Role::Texcoords,
-            ("texnumber", PropertyKind::Scalar(_)) => Role::TexNumber,
-            (name, _) => {
-                raw.skipped.push(format!("face.{name}"));
-                Role::Skip
-            }
-        })
-        .collect();
-    let has_uvs = roles.contains(&Role::Texcoords);
-    let has_texnumber = roles.contains(&Role::TexNumber);
-
-    // Every face holds at least 3 indices; texture coordinates may be empty lists, so their
-    // arrays grow as they are read.
+    let roles = face_roles(element, index_name, &mut raw.skipped);
+    let has_uvs = roles.contains(&FaceRole::Texcoords);
+    let has_texnumber = roles.contains(&FaceRole::TexNumber);
+    // Every face holds at least 3 indices.
     let cap = capacity(src, element, &[(index_name, 3)]);
-    raw.face_start.reserve(cap);
-    raw.face_vertices.reserve(cap * 3);
-    if has_uvs {
-        raw.corner_uvs.resize(raw.face_vertices.len(), NONE);
-    }
-    if has_texnumber {
-        raw.face_textures.reserve(cap);
-    }
+    reserve_faces(raw, cap, has_uvs, has_texnumber);
     // Per-face texture coordinates may come before the indices: gather them here (reused).
     let mut uv_scratch: Vec<f64> = Vec::new();
 
@@ -446,7 +450,7 @@ fn read_faces<S: Source>(
         uv_scratch.clear();
         for (p, &role) in element.properties.iter().zip(&roles) {
             match (role, p.kind) {
-                (Role::Indices, PropertyKind::List { count, item }) => {
+                (FaceRole::Indices, PropertyKind::List { count, item }) => {
                     let n = src.list_len(count, item)?;
                     if n < 3 {
                         return Err(Fault::Invalid(format!(
@@ -458,47 +462,20 @@ fn read_faces<S: Source>(
                         raw.face_vertices.push(v);
                     }
                 }
-                (Role::Texcoords, PropertyKind::List { count, item }) => {
+                (FaceRole::Texcoords, PropertyKind::List { count, item }) => {
                     let n = src.list_len(count, item)?;
                     for _ in 0..n {
                         uv_scratch.push(src.value(item)?);
                     }
                 }
-                (Role::TexNumber, PropertyKind::Scalar(ty)) => {
-                    let t = src.value(ty)?;
-                    if !(0.0..=f64::from(u16::MAX)).contains(&t) || t.fract() != 0.0 {
-                        return Err(Fault::Invalid(format!(
-                            "texnumber {t} is not a texture number"
-                        )));
-                    }
-                    texnumber = t as u32;
+                (FaceRole::TexNumber, PropertyKind::Scalar(ty)) => {
+                    texnumber = texture_number(src.value(ty)?)?;
                 }
                 (_, kind) => src.skip(kind)?,
             }
         }
-        let corners = raw.face_vertices.len() - first;
         if has_uvs {
-            if uv_scratch.is_empty() {
-                raw.corner_uvs.extend(std::iter::repeat_n(NONE, corners));
-            } else if uv_scratch.len() == 2 * corners {
-                for uv in uv_scratch.chunks_exact(2) {
-                    let uv = DVec2::new(uv[0], uv[1]);
-                    if !uv.is_finite() {
-                        return Err(Fault::NonFinite(format!(
-                            "texture coordinate {} {}",
-                            uv.x, uv.y
-                        )));
-                    }
-                    raw.corner_uvs.push(raw.corner_uv_values.len() as u32);
-                    raw.corner_uv_values.push(uv);
-                }
-            } else {
-                return Err(Fault::Invalid(format!(
-                    "texcoord has {} values for a face with {corners} corners (expected {})",
-                    uv_scratch.len(),
-                    2 * corners
-                )));
-            }
+            push_corner_uvs(raw, &uv_scratch, raw.face_vertices.len() - first)?;
         }
         if has_texnumber {
             raw.face_textures.push(texnumber);
@@ -506,6 +483,87 @@ fn read_faces<S: Source>(
         raw.face_start.push(raw.face_vertices.len());
         Ok(())
     })
+}
+
+/// What a face element's property is read as.
+#[derive(Clone, Copy, PartialEq)]
+enum FaceRole {
+    Skip,
+    Indices,
+    Texcoords,
+    TexNumber,
+}
+
+/// The role of each property of a face element; the ones skipped go to `skipped`.
+fn face_roles(element: &Element, index_name: &str, skipped: &mut Vec<String>) -> Vec<FaceRole> {
+    element
+        .properties
+        .iter()
+        .map(|p| match (p.name.as_str(), p.kind) {
+            (name, PropertyKind::List { .. }) if name == index_name => FaceRole::Indices,
+            ("texcoord", PropertyKind::List { .. }) => FaceRole::Texcoords,
+            ("texnumber", PropertyKind::Scalar(_)) => FaceRole::TexNumber,
+            (name, _) => {
+                skipped.push(format!("face.{name}"));
+                FaceRole::Skip
+            }
+        })
+        .collect()
+}
+
+/// Reserves room for `cap` faces; texture coordinates may be empty lists, so their arrays
+/// grow as they are read.
+fn reserve_faces(raw: &mut Raw, cap: usize, has_uvs: bool, has_texnumber: bool) {
+    raw.face_start.reserve(cap);
+    raw.face_vertices.reserve(cap * 3);
+    if has_uvs {
+        raw.corner_uvs.resize(raw.face_vertices.len(), NONE);
+    }
+    if has_texnumber {
+        raw.face_textures.reserve(cap);
+    }
+}
+
+/// A `texnumber` value as a texture number.
+fn texture_number(t: f64) -> std::result::Result<u32, Fault> {
+    if !(0.0..=f64::from(u16::MAX)).contains(&t) || t.fract() != 0.0 {
+        return Err(Fault::Invalid(format!(
+            "texnumber {t} is not a texture number"
+        )));
+    }
+    Ok(t as u32)
+}
+
+/// A face's texture coordinates (`uvs`, two values a corner, or none) for its `corners`.
+fn push_corner_uvs(raw: &mut Raw, uvs: &[f64], corners: usize) -> std::result::Result<(), Fault> {
+    if uvs.is_empty() {
+        raw.corner_uvs.extend(std::iter::repeat_n(NONE, corners));
+    } else if uvs.len() == 2 * corners {
+        for uv in uvs.chunks_exact(2) {
+            let uv = finite_uv(uv[0], uv[1])?;
+            raw.corner_uvs.push(raw.corner_uv_values.len() as u32);
+            raw.corner_uv_values.push(uv);
+        }
+    } else {
+        return Err(Fault::Invalid(format!(
+            "texcoord has {} values for a face with {corners} corners (expected {})",
+            uvs.len(),
+            2 * corners
+        )));
+    }
+    Ok(())
+}
+
+/// A texture coordinate, refused when not finite.
+fn finite_uv(u: f64, v: f64) -> std::result::Result<DVec2, Fault> {
+    let uv = DVec2::new(u, v);
+    if !uv.is_finite() {
+        return Err(Fault::NonFinite(format!(
+            "texture coordinate {} {}",
+            uv.x, uv.y
+        )));
+    }
+    Ok(uv)
 }
 
 /// Unrolls triangle strips: triangle j of a strip is (v[j], v[j+1], v[j+2]), with the first
@@ -794,7 +852,27 @@ fn assemble(
 
     let (mut materials, decoded_textures) =
         texture_materials(path, &header.texture_files(), options)?;
-    let max_texture = raw.face_textures.iter().copied().max();
+    let with_materials = materials_for_faces(path, &mut materials, &raw.face_textures);
+
+    let mut b = MeshBuilder::new(path, &format!("ply {}", header.format.keyword()));
+    file_counts(&mut b.report, &mut raw, faces);
+    b.report.decoded_textures = decoded_textures;
+    warn_bad_normals(path, &raw.normals);
+    push_triangles(&mut b, &raw, faces, with_materials);
+
+    b.positions = raw.positions;
+    b.normals = raw.normals;
+    b.colors = raw.colors;
+    b.texcoords = raw.vertex_uvs;
+    b.texcoords.extend_from_slice(&raw.corner_uv_values);
+    b.materials = materials;
+    b.finish(options)
+}
+
+/// Whether the faces carry materials; when they do, adds a material without texture for
+/// every texture number the header names no file for.
+fn materials_for_faces(path: &Path, materials: &mut Vec<Material>, face_textures: &[u32]) -> bool {
+    let max_texture = face_textures.iter().copied().max();
     let with_materials = !materials.is_empty() || max_texture.is_some_and(|m| m > 0);
     if let Some(max) = max_texture.filter(|_| with_materials) {
         if max as usize >= materials.len() {
@@ -807,23 +885,31 @@ fn assemble(
             });
         }
     }
+    with_materials
+}
 
-    let mut b = MeshBuilder::new(path, &format!("ply {}", header.format.keyword()));
-    let vertex_uv_count = raw.vertex_uvs.len();
-    b.report.file_vertices = raw.positions.len();
-    b.report.file_faces = faces;
-    b.report.file_normals = raw.normals.len();
-    b.report.file_texcoords = vertex_uv_count + raw.corner_uv_values.len();
-    b.report.strip_triangles = raw.strip_triangle_count;
-    b.report.skipped = std::mem::take(&mut raw.skipped);
-    b.report.decoded_textures = decoded_textures;
+/// What the file held, into the load report (the skipped properties are taken from `raw`).
+fn file_counts(report: &mut LoadReport, raw: &mut Raw, faces: usize) {
+    report.file_vertices = raw.positions.len();
+    report.file_faces = faces;
+    report.file_normals = raw.normals.len();
+    report.file_texcoords = raw.vertex_uvs.len() + raw.corner_uv_values.len();
+    report.strip_triangles = raw.strip_triangle_count;
+    report.skipped = std::mem::take(&mut raw.skipped);
+}
 
-    let has_normals = !raw.normals.is_empty();
-    let bad_normals = raw.normals.iter().filter(|n| !n.is_finite()).count();
+fn warn_bad_normals(path: &Path, normals: &[DVec3]) {
+    let bad_normals = normals.iter().filter(|n| !n.is_finite()).count();
     if bad_normals > 0 {
         tracing::warn!(path = %path.display(), "{bad_normals} vertex normals are not finite; those corners get no normal");
     }
-    let corner = |v: Index, uv: u32| Corner {
+}
+
+/// The corner of vertex `v` with corner texture coordinate `uv` (`NONE`: the vertex's own,
+/// if the vertices have them); texture coordinates index vertex ones, then corner ones.
+fn corner(raw: &Raw, v: Index, uv: u32) -> Corner {
+    let vertex_uv_count = raw.vertex_uvs.len();
+    Corner {
         vertex: v,
         texcoord: if uv != NONE {
             Some(vertex_uv_count as Index + uv)
@@ -832,9 +918,12 @@ fn assemble(
         } else {
             None
         },
-        normal: (has_normals && raw.normals[v as usize].is_finite()).then_some(v),
-    };
+        normal: (!raw.normals.is_empty() && raw.normals[v as usize].is_finite()).then_some(v),
+    }
+}
 
+/// The faces, fan-triangulated, then the strips' triangles, with their materials.
+fn push_triangles(b: &mut MeshBuilder, raw: &Raw, faces: usize, with_materials: bool) {
     let triangles = raw.face_vertices.len().saturating_sub(2 * faces) + raw.strip_triangles.len();
     b.faces.reserve(triangles);
     if with_materials {
@@ -847,6 +936,7 @@ fn assemble(
         }
         let c = |k: usize| {
             corner(
+                raw,
                 raw.face_vertices[k],
                 raw.corner_uvs.get(k).copied().unwrap_or(NONE),
             )
@@ -866,19 +956,11 @@ fn assemble(
         .map(|&(t, copies)| (first_strip + t, copies))
         .collect();
     for tri in &raw.strip_triangles {
-        b.faces.push(tri.map(|v| corner(v, NONE)));
+        b.faces.push(tri.map(|v| corner(raw, v, NONE)));
         if with_materials {
             b.face_materials.push(0);
         }
     }
-
-    b.positions = raw.positions;
-    b.normals = raw.normals;
-    b.colors = raw.colors;
-    b.texcoords = raw.vertex_uvs;
-    b.texcoords.extend_from_slice(&raw.corner_uv_values);
-    b.materials = materials;
-    b.finish(options)
 }
 
 #[cfg(test)]

@@ -545,22 +545,28 @@ fn normals_are_written_only_when_per_vertex() {
     assert!(!String::from_utf8_lossy(&bytes).contains("nx"));
 }
 
-#[test]
-fn writer_copies_present_textures() {
-    let src = tempfile::tempdir().unwrap();
+/// The ASCII unit square read from `dir`, naming the texture `name` (a 2×2 PNG made there).
+fn square_textured(dir: &Path, name: &str) -> Mesh {
     image::RgbImage::from_pixel(2, 2, image::Rgb([9, 9, 9]))
-        .save(src.path().join("skin.png"))
+        .save(dir.join(name))
         .unwrap();
     let text = SQUARE_ASCII.replace(
         "comment a unit",
-        "comment TextureFile skin.png\ncomment a unit",
+        &format!("comment TextureFile {name}\ncomment a unit"),
     );
-    let (mesh, _) = read(
-        &src.path().join("in.ply"),
+    read(
+        &dir.join("in.ply"),
         text.as_bytes(),
         &LoadOptions::default(),
     )
-    .unwrap();
+    .unwrap()
+    .0
+}
+
+#[test]
+fn writer_copies_present_textures() {
+    let src = tempfile::tempdir().unwrap();
+    let mesh = square_textured(src.path(), "skin.png");
     let out = tempfile::tempdir().unwrap();
     let path = out.path().join("out.ply");
     let written = write(&mesh, &path, PlyEncoding::BinaryLittleEndian).unwrap();
@@ -585,19 +591,7 @@ fn writer_copies_present_textures() {
 #[test]
 fn writer_keeps_copied_textures_apart_from_reserved_names() {
     let src = tempfile::tempdir().unwrap();
-    image::RgbImage::from_pixel(2, 2, image::Rgb([9, 9, 9]))
-        .save(src.path().join("out.preview.png"))
-        .unwrap();
-    let text = SQUARE_ASCII.replace(
-        "comment a unit",
-        "comment TextureFile out.preview.png\ncomment a unit",
-    );
-    let (mesh, _) = read(
-        &src.path().join("in.ply"),
-        text.as_bytes(),
-        &LoadOptions::default(),
-    )
-    .unwrap();
+    let mesh = square_textured(src.path(), "out.preview.png");
     let out = tempfile::tempdir().unwrap();
     let path = out.path().join("out.ply");
     let reserved = ["out.preview.png".to_string()];

@@ -96,6 +96,11 @@ fn neighbours(n: usize, closed: bool, i: usize) -> Option<(usize, usize)> {
     }
 }
 
+/// The neighbours of vertex `i` when it may move: neither an open end nor fixed.
+fn free_neighbours(n: usize, shape: CurveShape, i: usize) -> Option<(usize, usize)> {
+    neighbours(n, shape.closed, i).filter(|_| !shape.is_fixed(i))
+}
+
 /// One curvature iteration (§2.7), Jacobi: the candidate new position of every vertex
 /// (unchanged for fixed vertices and open ends). `eps` is the zero tolerance on `H`,
 /// already in the curve's units.
@@ -105,12 +110,9 @@ pub fn curvature_sweep(pts: &[DVec3], shape: CurveShape, lambda: f64, eps: f64) 
     let valid = |j: usize| neighbours(n, shape.closed, j).is_some();
     (0..n)
         .map(|i| {
-            let Some((p, q)) = neighbours(n, shape.closed, i) else {
+            let Some((p, q)) = free_neighbours(n, shape, i) else {
                 return pts[i];
             };
-            if shape.is_fixed(i) {
-                return pts[i];
-            }
             let hi = h[i].length();
             if hi < eps {
                 return pts[i]; // §2.7.4 special case 1: H = 0, α = 0
@@ -153,12 +155,9 @@ pub fn nonuniformity_sweep(pts: &[DVec3], shape: CurveShape, lambda_u: f64) -> V
     let n = pts.len();
     (0..n)
         .map(|i| {
-            let Some((p, q)) = neighbours(n, shape.closed, i) else {
+            let Some((p, q)) = free_neighbours(n, shape, i) else {
                 return pts[i];
             };
-            if shape.is_fixed(i) {
-                return pts[i];
-            }
             pts[i] + lambda_u * nonuniformity(pts[p], pts[i], pts[q])
         })
         .collect()

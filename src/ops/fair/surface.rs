@@ -308,6 +308,51 @@ impl Interior<'_> {
     }
 }
 
+/// What a thesis-order sweep has moved so far: the sum and the largest of the distances.
+#[derive(Default)]
+struct Moved {
+    sum: f64,
+    max: f64,
+}
+
+impl Moved {
+    /// Moves vertex `v` from `a` towards `candidate` as far as the guards on its closed fan
+    /// (`ring`, `references`) allow, writing the new position back at once.
+    #[allow(clippy::too_many_arguments)]
+    fn guarded(
+        &mut self,
+        positions: &mut [DVec3],
+        v: usize,
+        a: DVec3,
+        candidate: DVec3,
+        ring: &[DVec3],
+        references: &[Reference],
+        guards: &mut GuardCounts,
+    ) {
+        let fan = Fan {
+            ring,
+            closed: true,
+            references,
+        };
+        let (p, g) = guarded_move(a, candidate, fan);
+        guards.record(g);
+        positions[v] = p;
+        let d = (p - a).length();
+        self.sum += d;
+        self.max = self.max.max(d);
+    }
+
+    /// The sweep's figures: every movable vertex counts as updated.
+    fn sweep(self, it: &Interior) -> Sweep {
+        Sweep {
+            mean: self.sum / it.movable_count.max(1) as f64,
+            max: self.max,
+            updates: it.movable_count,
+            halt: false,
+        }
+    }
+}
+
 /// The references of `v`'s fan triangles.
 #[inline]
 fn gather_references(it: &Interior, v: usize, buf: &mut Vec<Reference>) {
@@ -405,7 +450,7 @@ pub fn thesis_curvature_sweep(
     let mut buf = Vec::new();
     let mut nbuf = Vec::new();
     let mut rbuf = Vec::new();
-    let (mut sum, mut max) = (0.0, 0.0f64);
+    let mut moved = Moved::default();
     for v in 0..positions.len() {
         if !it.movable[v] {
             continue;
@@ -422,24 +467,9 @@ pub fn thesis_curvature_sweep(
         };
         gather(positions, ring, &mut buf);
         gather_references(it, v, &mut rbuf);
-        let fan = Fan {
-            ring: &buf,
-            closed: true,
-            references: &rbuf,
-        };
-        let (p, g) = guarded_move(a, candidate, fan);
-        guards.record(g);
-        positions[v] = p;
-        let d = (p - a).length();
-        sum += d;
-        max = max.max(d);
+        moved.guarded(positions, v, a, candidate, &buf, &rbuf, guards);
     }
-    Sweep {
-        mean: sum / it.movable_count.max(1) as f64,
-        max,
-        updates: it.movable_count,
-        halt: false,
-    }
+    moved.sweep(it)
 }
 
 /// One non-uniformity iteration in the thesis' order (§3.7, eq. 3.37 with β = λ_u).
@@ -451,7 +481,7 @@ pub fn thesis_nonuniformity_sweep(
 ) -> Sweep {
     let mut buf = Vec::new();
     let mut rbuf = Vec::new();
-    let (mut sum, mut max) = (0.0, 0.0f64);
+    let mut moved = Moved::default();
     for v in 0..positions.len() {
         if !it.movable[v] {
             continue;
@@ -460,24 +490,9 @@ pub fn thesis_nonuniformity_sweep(
         gather_references(it, v, &mut rbuf);
         let a = positions[v];
         let candidate = it.on_input_surface(v, a + lambda_u * nonuniformity(a, &buf));
-        let fan = Fan {
-            ring: &buf,
-            closed: true,
-            references: &rbuf,
-        };
-        let (p, g) = guarded_move(a, candidate, fan);
-        guards.record(g);
-        positions[v] = p;
-        let d = (p - a).length();
-        sum += d;
-        max = max.max(d);
+        moved.guarded(positions, v, a, candidate, &buf, &rbuf, guards);
     }
-    Sweep {
-        mean: sum / it.movable_count.max(1) as f64,
-        max,
-        updates: it.movable_count,
-        halt: false,
-    }
+    moved.sweep(it)
 }
 
 /// Reusable buffers of the fast sweeps (no allocation per iteration).

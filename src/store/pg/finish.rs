@@ -5,7 +5,7 @@
 use super::{ConnInfo, DbError, is_retryable};
 use crate::store::{
     ClaimedJob, FailureKind, FinalState, Finish, MAX_ERROR_BYTES, RetryPolicy, StoreError,
-    backoff_ms, cut, now_ms,
+    backoff_ms, cut, failure_disposition, now_ms,
 };
 use postgres::{Client, NoTls, Transaction};
 use std::sync::Mutex;
@@ -177,13 +177,7 @@ fn record_failure(
     now: i64,
     wall_ms: f64,
 ) -> DbResult<FinalState> {
-    let (state, retryable, outcome, fs) = if !transient {
-        ("failed", 0i64, "failed", FinalState::Failed)
-    } else if job.attempt >= job.max_attempts {
-        ("quarantined", 0, "quarantined", FinalState::Quarantined)
-    } else {
-        ("failed", 1, "retry", FinalState::RetryLater)
-    };
+    let (state, retryable, outcome, fs) = failure_disposition(transient, job);
     let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
     let message = cut(message, MAX_ERROR_BYTES);
     tx.execute(

@@ -78,21 +78,13 @@ impl PgStore {
             })?;
             return Ok(rows
                 .iter()
-                .map(|r| HistoryRow {
-                    id: None,
-                    state: "waiting".into(),
-                    created: iso_time(r.get(3)),
-                    finished: None,
-                    input: shown_input(r.get(0), r.get(1)),
-                    recipe: String::new(),
-                    attempts: 0,
-                    in_faces: None,
-                    out_faces: None,
-                    process_ms: None,
-                    output: None,
-                    outputs: Vec::new(),
-                    error_kind: Some("waiting".into()),
-                    error: Some(bounded(&r.get::<_, String>(2), MAX_SHOWN)),
+                .map(|r| {
+                    let created = r.get(3);
+                    HistoryRow::waiting(
+                        shown_input(r.get(0), r.get(1)),
+                        created,
+                        &r.get::<_, String>(2),
+                    )
                 })
                 .collect());
         }
