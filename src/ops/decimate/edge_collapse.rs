@@ -39,86 +39,6 @@ pub fn combine(costs: [Result<f64, Refusal>; 3]) -> Result<(usize, f64), Refusal
     best.ok_or(cause)
 }
 
-/// Collapses the cheapest side of `t` that passes the guards. `best` is the triangle's
-/// cheapest side and its cost as the heap holds them (the loop keeps both current); that
-/// side is evaluated first, and the other two are costed only when it is refused, so a
-/// collapse that goes through at once (most of them) skips two quick costs. The order in
-/// which sides are tried, and so the result, is the same as costing all three first.
-pub fn attempt<const M: usize>(
-    work: &mut Work<M>,
-    t: usize,
-    best: Option<(usize, f64)>,
-    max_error: f64,
-    sc: &mut Scratch<M>,
-    stats: &mut LoopStats,
-) -> Result<Plan, Refusal> {
-    let all = sides(work, t);
-    debug_assert!(
-        best.is_none_or(|b| best_side(work, t).map(|(i, c)| (i, c.max(0.0) + 0.0)) == Ok(b)),
-        "stale cheapest side of triangle {t}: {best:?} vs {:?}",
-        best_side(work, t)
-    );
-    // Why the last side was refused: the last full evaluation's cause, else the last
-    // quick cost's (as when every side is costed first, sides in order).
-    let mut eval_cause: Option<Refusal> = None;
-    let mut try_side = |work: &mut Work<M>,
-                        i: usize,
-                        sc: &mut Scratch<M>,
-                        stats: &mut LoopStats|
-     -> Option<Plan> {
-        stats.evaluations += 1;
-        let plan = match work.evaluate(&all[i], sc) {
-            Ok(p) => p,
-            Err(c) => {
-                eval_cause = Some(c);
-                return None;
-            }
-        };
-        if plan.error > max_error {
-            eval_cause = Some(Refusal::MaxError);
-            return None;
-        }
-        if let Err(c) = work.check(&plan, sc) {
-            eval_cause = Some(c);
-            return None;
-        }
-        if plan.fallback {
-            stats.ill_conditioned += 1;
-        }
-        work.apply(&plan, sc);
-        Some(plan)
-    };
-    let first = best.filter(|b| b.1.is_finite()).map(|b| b.0);
-    if let Some(i) = first
-        && let Some(plan) = try_side(work, i, sc, stats)
-    {
-        return Ok(plan);
-    }
-    let mut costs: [(f64, usize); 3] = [(f64::INFINITY, 0); 3];
-    let mut quick_cause = Refusal::Link;
-    for (i, side) in all.iter().enumerate() {
-        if Some(i) == first {
-            // Already tried (and refused): it stays out of the order below.
-            costs[i] = (f64::INFINITY, i);
-            continue;
-        }
-        match work.quick_cost(side) {
-            Ok(cost) => costs[i] = (cost, i),
-            Err(c) => quick_cause = c,
-        }
-    }
-    costs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    for &(cost, i) in &costs {
-        if !cost.is_finite() {
-            break;
-        }
-        if let Some(plan) = try_side(work, i, sc, stats) {
-            return Ok(plan);
-        }
-    }
-    Err(eval_cause.unwrap_or(quick_cause))
-}
-
 /// Edge collapse as the loop's operator: a triangle's candidate is its cheapest side.
 pub struct EdgeCollapse;
 
@@ -137,6 +57,11 @@ impl CollapseOperator for EdgeCollapse {
         })
     }
 
+    /// Collapses the cheapest side of `t` that passes the guards. `best` is the triangle's
+    /// cheapest side and its cost as the heap holds them (the loop keeps both current); that
+    /// side is evaluated first, and the other two are costed only when it is refused, so a
+    /// collapse that goes through at once (most of them) skips two quick costs. The order in
+    /// which sides are tried, and so the result, is the same as costing all three first.
     fn attempt<const M: usize>(
         &self,
         work: &mut Work<M>,
@@ -146,7 +71,71 @@ impl CollapseOperator for EdgeCollapse {
         sc: &mut Scratch<M>,
         stats: &mut LoopStats,
     ) -> Result<Plan, Refusal> {
-        attempt(work, t, best, max_error, sc, stats)
+        let all = sides(work, t);
+        debug_assert!(
+            best.is_none_or(|b| best_side(work, t).map(|(i, c)| (i, c.max(0.0) + 0.0)) == Ok(b)),
+            "stale cheapest side of triangle {t}: {best:?} vs {:?}",
+            best_side(work, t)
+        );
+        // Why the last side was refused: the last full evaluation's cause, else the last
+        // quick cost's (as when every side is costed first, sides in order).
+        let mut eval_cause: Option<Refusal> = None;
+        let mut try_side = |work: &mut Work<M>,
+                            i: usize,
+                            sc: &mut Scratch<M>,
+                            stats: &mut LoopStats|
+         -> Option<Plan> {
+            stats.evaluations += 1;
+            let plan = match work.evaluate(&all[i], sc) {
+                Ok(p) => p,
+                Err(c) => {
+                    eval_cause = Some(c);
+                    return None;
+                }
+            };
+            if plan.error > max_error {
+                eval_cause = Some(Refusal::MaxError);
+                return None;
+            }
+            if let Err(c) = work.check(&plan, sc) {
+                eval_cause = Some(c);
+                return None;
+            }
+            if plan.fallback {
+                stats.ill_conditioned += 1;
+            }
+            work.apply(&plan, sc);
+            Some(plan)
+        };
+        let first = best.filter(|b| b.1.is_finite()).map(|b| b.0);
+        if let Some(i) = first
+            && let Some(plan) = try_side(work, i, sc, stats)
+        {
+            return Ok(plan);
+        }
+        let mut costs: [(f64, usize); 3] = [(f64::INFINITY, 0); 3];
+        let mut quick_cause = Refusal::Link;
+        for (i, side) in all.iter().enumerate() {
+            if Some(i) == first {
+                // Already tried (and refused): it stays out of the order below.
+                costs[i] = (f64::INFINITY, i);
+                continue;
+            }
+            match work.quick_cost(side) {
+                Ok(cost) => costs[i] = (cost, i),
+                Err(c) => quick_cause = c,
+            }
+        }
+        costs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for &(cost, i) in &costs {
+            if !cost.is_finite() {
+                break;
+            }
+            if let Some(plan) = try_side(work, i, sc, stats) {
+                return Ok(plan);
+            }
+        }
+        Err(eval_cause.unwrap_or(quick_cause))
     }
 
     /// Each side at the new vertex is shared by two fan triangles, so its cost is computed

@@ -545,92 +545,116 @@ fn run<const M: usize>(
     origin: Option<&Mesh>,
 ) -> (Mesh, DecimateReport) {
     let w = weights::<M>(mesh, params);
-    let diag = mesh.bounding_box_diagonal();
     match params.method {
         Method::Cluster | Method::ClusterKeep => cluster::run::<M>(mesh, params, w),
-        Method::FaceCollapse | Method::EdgeCollapse => {
-            let cfg = Config {
-                boundary: params.boundary,
-                boundary_weight: params.boundary_weight,
-                seam_weight: params.seam_weight.unwrap_or(match params.method {
-                    Method::EdgeCollapse => 1.0,
-                    _ => 0.0,
-                }),
-                conditioning: params.conditioning,
-                max_condition: params.max_condition,
-                fallback: params.fallback,
-                cos_max_normal_change: params.max_normal_change.to_radians().cos(),
-                guards: params.guards,
-            };
-            let (t0, c0) = (std::time::Instant::now(), cpu_seconds());
-            let mut work = Work::<M>::new(mesh, w, cfg, origin);
-            let (t1, c1) = (std::time::Instant::now(), cpu_seconds());
-            // Normalised units: the largest box side is 1.
-            let to_diag = if diag > 0.0 {
-                1.0 / (work.inv_scale * diag)
-            } else {
-                1.0
-            };
-            let max_error = params.max_error.map_or(f64::INFINITY, |e| e / to_diag);
-            let target = params.target_faces.unwrap_or(0);
-            let (stats, what) = if params.method == Method::FaceCollapse {
-                let op = FaceCollapse {
-                    priority: params.priority,
-                };
-                let stats = collapse_loop::run(&mut work, &op, target, max_error);
-                (stats, FaceCollapse::NAME)
-            } else {
-                let stats = collapse_loop::run(&mut work, &EdgeCollapse, target, max_error);
-                (stats, EdgeCollapse::NAME)
-            };
-            let (t2, c2) = (std::time::Instant::now(), cpu_seconds());
-            let classes = work.classes;
-            let report = DecimateReport {
-                error_reached: stats.max_error * to_diag,
-                stopped_by: if stats.stopped_by == StopReason::NoCandidates
-                    && params.max_error.is_some()
-                {
-                    StopReason::MaxError
-                } else {
-                    stats.stopped_by
-                },
-                collapses: stats.collapses,
-                refused: stats.refused,
-                stop_note: stats.blocked.map(|b| {
-                    let causes: Vec<String> = b
-                        .ranked()
-                        .iter()
-                        .map(|(n, why)| format!("{n} {why}"))
-                        .collect();
-                    format!(
-                        "stopped at {} faces, short of the target {}: all {} {what} left are refused: {}",
-                        work.live,
-                        target,
-                        b.total(),
-                        causes.join("; ")
-                    )
-                }),
-                blocked: stats.blocked,
-                evaluations: stats.evaluations,
-                ill_conditioned: stats.ill_conditioned,
-                interior_vertices: classes.interior,
-                border_vertices: classes.border,
-                seam_vertices: classes.seam,
-                fixed_vertices: classes.fixed,
-                ..Default::default()
-            };
-            let out = work.into_mesh();
-            tracing::debug!(
-                work_ms = (t1 - t0).as_secs_f64() * 1e3,
-                collapse_ms = (t2 - t1).as_secs_f64() * 1e3,
-                output_ms = t2.elapsed().as_secs_f64() * 1e3,
-                work_cpu_ms = (c1 - c0) * 1e3,
-                collapse_cpu_ms = (c2 - c1) * 1e3,
-                output_cpu_ms = (cpu_seconds() - c2) * 1e3,
-                "decimate phases"
-            );
-            (out, report)
-        }
+        Method::FaceCollapse | Method::EdgeCollapse => collapse::<M>(mesh, params, w, origin),
+    }
+}
+
+/// The collapse methods' settings for [`Work`], from the step's parameters.
+fn collapse_config(params: &DecimateParams) -> Config {
+    Config {
+        boundary: params.boundary,
+        boundary_weight: params.boundary_weight,
+        seam_weight: params.seam_weight.unwrap_or(match params.method {
+            Method::EdgeCollapse => 1.0,
+            _ => 0.0,
+        }),
+        conditioning: params.conditioning,
+        max_condition: params.max_condition,
+        fallback: params.fallback,
+        cos_max_normal_change: params.max_normal_change.to_radians().cos(),
+        guards: params.guards,
+    }
+}
+
+/// Face or edge collapse: the set-up, the collapse loop, the output; the phases' wall and
+/// CPU times go to the debug log.
+fn collapse<const M: usize>(
+    mesh: &Mesh,
+    params: &DecimateParams,
+    w: Weights<M>,
+    origin: Option<&Mesh>,
+) -> (Mesh, DecimateReport) {
+    let diag = mesh.bounding_box_diagonal();
+    let (t0, c0) = (std::time::Instant::now(), cpu_seconds());
+    let mut work = Work::<M>::new(mesh, w, collapse_config(params), origin);
+    let (t1, c1) = (std::time::Instant::now(), cpu_seconds());
+    // Normalised units: the largest box side is 1.
+    let to_diag = if diag > 0.0 {
+        1.0 / (work.inv_scale * diag)
+    } else {
+        1.0
+    };
+    let max_error = params.max_error.map_or(f64::INFINITY, |e| e / to_diag);
+    let target = params.target_faces.unwrap_or(0);
+    let (stats, what) = if params.method == Method::FaceCollapse {
+        let op = FaceCollapse {
+            priority: params.priority,
+        };
+        let stats = collapse_loop::run(&mut work, &op, target, max_error);
+        (stats, FaceCollapse::NAME)
+    } else {
+        let stats = collapse_loop::run(&mut work, &EdgeCollapse, target, max_error);
+        (stats, EdgeCollapse::NAME)
+    };
+    let (t2, c2) = (std::time::Instant::now(), cpu_seconds());
+    let report = collapse_report(params, &work, stats, what, to_diag);
+    let out = work.into_mesh();
+    tracing::debug!(
+        work_ms = (t1 - t0).as_secs_f64() * 1e3,
+        collapse_ms = (t2 - t1).as_secs_f64() * 1e3,
+        output_ms = t2.elapsed().as_secs_f64() * 1e3,
+        work_cpu_ms = (c1 - c0) * 1e3,
+        collapse_cpu_ms = (c2 - c1) * 1e3,
+        output_cpu_ms = (cpu_seconds() - c2) * 1e3,
+        "decimate phases"
+    );
+    (out, report)
+}
+
+/// The report of a collapse method: the loop's figures, errors back in the input's units
+/// (`to_diag`), and when the loop stopped short, a note of why.
+fn collapse_report<const M: usize>(
+    params: &DecimateParams,
+    work: &Work<M>,
+    stats: collapse_loop::LoopStats,
+    what: &str,
+    to_diag: f64,
+) -> DecimateReport {
+    let target = params.target_faces.unwrap_or(0);
+    let classes = &work.classes;
+    DecimateReport {
+        error_reached: stats.max_error * to_diag,
+        stopped_by: if stats.stopped_by == StopReason::NoCandidates && params.max_error.is_some() {
+            StopReason::MaxError
+        } else {
+            stats.stopped_by
+        },
+        collapses: stats.collapses,
+        refused: stats.refused,
+        stop_note: stats.blocked.as_ref().map(|b| {
+            let causes: Vec<String> = b
+                .ranked()
+                .iter()
+                .map(|(n, why)| format!("{n} {why}"))
+                .collect();
+            format!(
+                "stopped at {} faces, short of the target {}: all {} {what} left are refused: {}",
+                work.live,
+                target,
+                b.total(),
+                causes.join("; ")
+            )
+        }),
+        blocked: stats.blocked,
+        evaluations: stats.evaluations,
+        ill_conditioned: stats.ill_conditioned,
+        interior_vertices: classes.interior,
+        border_vertices: classes.border,
+        seam_vertices: classes.seam,
+        fixed_vertices: classes.fixed,
+        ..Default::default()
     }
 }
 

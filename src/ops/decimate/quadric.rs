@@ -176,27 +176,17 @@ impl<const M: usize> Quadric<M> {
             self.beta[k] += o.beta[k];
         }
         self.c += o.c;
-        for j in 0..M {
-            for k in 0..3 {
-                self.g[j][k] += o.g[j][k];
-            }
-            self.delta[j] += o.delta[j];
-        }
-        self.alpha += o.alpha;
+        add_attr(
+            (&mut self.g, &mut self.delta, &mut self.alpha),
+            (&o.g, &o.delta, o.alpha),
+        );
     }
 
     /// The optimal attributes at position `p` (§3.8 [D]): the area-weighted mean of the
     /// summed faces' linear predictions, independent of the weights. `None` without area.
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
-        if !(self.alpha > 0.0) {
-            return None;
-        }
-        let mut s = [0.0; M];
-        for j in 0..M {
-            s[j] = (dot(self.g[j], p) + self.delta[j]) / self.alpha;
-        }
-        Some(s)
+        attributes_at(&self.g, &self.delta, self.alpha, p)
     }
 
     /// Q(p, s) = xᵀAx + 2bᵀx + c for x = (p; s) (eq. 2.12 evaluation), compact form.
@@ -210,6 +200,42 @@ impl<const M: usize> Quadric<M> {
         }
         q
     }
+}
+
+/// Adds the attribute part `(g, delta, alpha)` of `o` to `s`: shared by the full quadric and
+/// [`AttrPart`], which hold the same three fields.
+#[inline]
+fn add_attr<const M: usize>(
+    s: (&mut [[f64; 3]; M], &mut [f64; M], &mut f64),
+    o: (&[[f64; 3]; M], &[f64; M], f64),
+) {
+    for j in 0..M {
+        for k in 0..3 {
+            s.0[j][k] += o.0[j][k];
+        }
+        s.1[j] += o.1[j];
+    }
+    *s.2 += o.2;
+}
+
+/// The optimal attributes at position `p` (§3.8 [D]) of an attribute part `(g, delta,
+/// alpha)`: the area-weighted mean of the summed faces' linear predictions. `None` without
+/// area.
+#[inline]
+fn attributes_at<const M: usize>(
+    g: &[[f64; 3]; M],
+    delta: &[f64; M],
+    alpha: f64,
+    p: [f64; 3],
+) -> Option<[f64; M]> {
+    if !(alpha > 0.0) {
+        return None;
+    }
+    let mut s = [0.0; M];
+    for j in 0..M {
+        s[j] = (dot(g[j], p) + delta[j]) / alpha;
+    }
+    Some(s)
 }
 
 /// The attribute part of a wedge quadric, `(Σ a·g_j, Σ a·d_j, Σ a)`: what the wedge-aware
@@ -235,26 +261,16 @@ impl<const M: usize> Default for AttrPart<M> {
 impl<const M: usize> AttrPart<M> {
     #[inline]
     pub fn add(&mut self, o: &Self) {
-        for j in 0..M {
-            for k in 0..3 {
-                self.g[j][k] += o.g[j][k];
-            }
-            self.delta[j] += o.delta[j];
-        }
-        self.alpha += o.alpha;
+        add_attr(
+            (&mut self.g, &mut self.delta, &mut self.alpha),
+            (&o.g, &o.delta, o.alpha),
+        );
     }
 
     /// Optimal attributes at `p` (§3.8 [D]), `None` without area.
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
-        if !(self.alpha > 0.0) {
-            return None;
-        }
-        let mut s = [0.0; M];
-        for j in 0..M {
-            s[j] = (dot(self.g[j], p) + self.delta[j]) / self.alpha;
-        }
-        Some(s)
+        attributes_at(&self.g, &self.delta, self.alpha, p)
     }
 
     /// How much attributes `s` cost above the optimum at `p`: for fixed `p` the quadric is
