@@ -1,30 +1,30 @@
-//! Octree vertex clustering (spec/decimation.md §5.1–5.5): algorithm v (`cluster`, the
-//! attribute-extended quadric of each cell minimised, §5.5) and algorithm vo
+//! Octree vertex clustering (thesis §3.1): algorithm v (`cluster`, the
+//! attribute-extended quadric of each cell minimised, §3.1.2) and algorithm vo
 //! (`cluster-keep`, the cell's best original vertex by the vertex–plane metric plus simple
-//! attribute terms, §5.4).
+//! attribute terms, §3.1.1).
 //!
-//! The adaptive octree (§5.1) is built implicitly from the vertices sorted by Morton key
-//! (the key of Schaefer–Warren, §5.2): a cell is a run of equal key prefixes, so every
+//! The adaptive octree (§3.1) is built implicitly from the vertices sorted by Morton key
+//! (the key of Schaefer–Warren, §3.1): a cell is a run of equal key prefixes, so every
 //! node is a contiguous range of the sorted vertices, and only cells that hold a vertex
 //! exist. Chains of single-child cells are skipped (they do not change the leaves). Points
 //! that share a cell at the maximum depth (21 levels, about 5·10⁻⁷ of the box) form one
-//! leaf (§5.1 point equality with tolerance 0, depth-capped as §10.17 asks).
+//! leaf (§3.1 point equality with tolerance 0, depth-capped as reading R13 asks).
 //!
-//! Pruning (§5.3, reading (b)): the heap holds the inner nodes whose children are all leaves;
+//! Pruning (§3.1, reading (b)): the heap holds the inner nodes whose children are all leaves;
 //! the cheapest becomes a leaf (a cell collapse), and its parent joins the heap once all of
 //! its children are leaves. The errors never change while a node waits, so the heap needs
 //! no stale entries. It stops when the triangles that keep three distinct cells number at
 //! most `target_faces` (counted incrementally), or when `max_error` would be exceeded.
 //!
-//! Mesh generation (§5.3): every input triangle whose corners fall into three distinct
+//! Mesh generation (§3.1): every input triangle whose corners fall into three distinct
 //! leaves survives, with its corners re-mapped, in input order; of triangles that map to the
 //! same three cells only the first is kept. Never-collapsed leaves keep their vertex and its
 //! wedges; a collapsed cell of `cluster` gets one new vertex with one wedge (its attributes
-//! from the quadric; §5.5 [I]: one attribute set per output vertex, so seams inside a cell
+//! from the quadric; §3.1.2 [I]: one attribute set per output vertex, so seams inside a cell
 //! close, which the `seam_fix` step then repairs); a collapsed cell of `cluster-keep` is
 //! represented by its chosen original vertex, each corner taking that vertex's wedge whose
 //! texture coordinate is nearest to the corner's own. Clustering does not preserve
-//! manifoldness (§5.3 [D]); the guards of the collapse methods do not apply here.
+//! manifoldness (§3.1 [D]); the guards of the collapse methods do not apply here.
 
 use super::quadric::{Quadric, Reduced, Weights, dot, sym_mul};
 use super::{DecimateParams, DecimateReport, Fallback, Method};
@@ -62,7 +62,7 @@ struct Node {
     leaf: bool,
 }
 
-/// Per-vertex data of the vo metric (§5.4, eqs. 3.1–3.3 in O(1) form, §5.4 [D]).
+/// Per-vertex data of the vo metric (§3.1.1, eqs. 3.1–3.3 in O(1) form, §3.1.1 [D]).
 #[derive(Clone, Copy, Default)]
 struct VoSums {
     geo: Reduced,
@@ -246,7 +246,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
         a
     }
 
-    /// Per-vertex quadric (v: the (vertex, face) items of §5.5 summed) or vo sums (§5.4).
+    /// Per-vertex quadric (v: the (vertex, face) items of §3.1.2 summed) or vo sums (§3.1.1).
     fn vertex_data(&mut self) {
         let keep = self.params.method == Method::ClusterKeep;
         let this = &*self;
@@ -359,7 +359,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
         red.add_wedge(&q, &self.w);
         let regularise = self.params.fallback == Fallback::Regularised;
         let (mut p, _) = red.minimise(mean, self.params.max_condition, regularise);
-        // Guard (not in the thesis, §5.5 algorithm v): the minimiser of a cell whose
+        // Guard (not in the thesis, §3.1.2 algorithm v): the minimiser of a cell whose
         // quadric is nearly singular along some direction can lie far outside the cell
         // although the conditioning test passed (it happens on real scans: docs/decimation.md).
         // A representative farther than a

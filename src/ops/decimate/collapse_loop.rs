@@ -1,7 +1,7 @@
-//! The collapse loop of both collapse operators, in the lazy framework (spec/decimation.md
-//! §2.4, thesis §1.3.3): the heap holds triangle indices; a triangle touched by a collapse
+//! The collapse loop of both collapse operators, in the lazy framework (thesis
+//! §1.3.3): the heap holds triangle indices; a triangle touched by a collapse
 //! is re-costed. What a triangle's candidate is and how it collapses is the operator's
-//! ([`CollapseOperator`]): [`FaceCollapse`], algorithm f (§5.6, face collapse with the
+//! ([`CollapseOperator`]): [`FaceCollapse`], algorithm f (§3.2, face collapse with the
 //! wedge-aware quadric), or [`super::edge_collapse::EdgeCollapse`], where a triangle's
 //! candidate is the cheapest of its three sides.
 
@@ -55,7 +55,7 @@ pub trait CollapseOperator: Sync {
     fn for_each_candidate<const M: usize>(&self, work: &Work<M>, f: &mut dyn FnMut(&[u32]));
 }
 
-/// Algorithm f (spec/decimation.md §5.6): a triangle collapses to one vertex.
+/// Algorithm f (thesis §3.2): a triangle collapses to one vertex.
 pub struct FaceCollapse {
     pub priority: Priority,
 }
@@ -206,10 +206,10 @@ fn census<const M: usize, O: CollapseOperator>(
 }
 
 /// Collapses until at most `target` triangles are left (within one operation: 4 faces
-/// for face collapse, 2 for edge collapse, §5.6 step 9) or no candidate is left.
+/// for face collapse, 2 for edge collapse, §3.2) or no candidate is left.
 /// `max_error` (normalised units) refuses collapses with a larger error.
 ///
-/// The thesis' lazy scheme (§5.6 steps 1 and 8: mark the triangles around a collapse
+/// The thesis' lazy scheme (§3.2: mark the triangles around a collapse
 /// stale, re-cost them when they reach the top) is kept in effect but done at once: the
 /// triangles around a collapse are re-keyed in an indexed heap right after it, which is
 /// the same greedy order without the stale entries' extra heap traffic.

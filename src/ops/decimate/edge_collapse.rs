@@ -1,5 +1,5 @@
-//! Edge collapse over the same wedge-aware quadrics and guards (spec/decimation.md §2.3,
-//! thesis §1.2.1, full-edge variant): a triangle's candidate is the cheapest of its three
+//! Edge collapse over the same wedge-aware quadrics and guards (thesis §1.2.1,
+//! the full-edge variant): a triangle's candidate is the cheapest of its three
 //! sides, so the lazy triangle heap of face collapse drives it unchanged
 //! ([`super::collapse_loop`]).
 

@@ -1,5 +1,5 @@
-//! What the thesis leaves out and a lab needs (spec/decimation.md §5.6 [D], §10.14;
-//! peers.md §2.4): vertex classes for seams and borders, the link condition, and the
+//! What the thesis leaves out and a lab needs (thesis §3.2 [D], reading R12 in
+//! docs/decimation.md; as meshoptimizer and pmp-library do): vertex classes for seams and borders, the link condition, and the
 //! triangle checks (normal flip, texture flip, degeneracy).
 
 use super::quadric::{cross, dot, sub};

@@ -1,9 +1,10 @@
-//! Decimation (spec/decimation.md): wedge-aware quadric face collapse (algorithm f, §5.6),
+//! Decimation (docs/decimation.md, which names the thesis; § below are the thesis' sections and
+//! "reading Rn" the choices listed there where it is wrong or silent): wedge-aware quadric face collapse (algorithm f, §3.2),
 //! edge collapse over the same quadrics, and octree vertex clustering (algorithms v and
-//! vo, §5.4–5.5). Every method records in `triangle_origins` the input triangle each
-//! output triangle descends from, so that `seam_fix` (§5.7) can run after any of them.
+//! vo, §3.1.1–3.1.2). Every method records in `triangle_origins` the input triangle each
+//! output triangle descends from, so that `seam_fix` (§3.3) can run after any of them.
 //!
-//! Positions are normalised into a unit box (largest side 1) for the whole run (§3.10
+//! Positions are normalised into a unit box (largest side 1) for the whole run (reading R16
 //! [D]); errors are reported relative to the bounding-box diagonal.
 
 // Small fixed-size linear algebra reads best with index loops, and `!(x > 0.0)` is the
@@ -31,7 +32,7 @@ use work::{Config, Work};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
-    /// Algorithm f (§5.6): face collapse with the wedge-aware quadric.
+    /// Algorithm f (§3.2): face collapse with the wedge-aware quadric.
     FaceCollapse,
     /// Full-edge collapse over the same quadrics and guards. The default: on all six
     /// textured test scans it has a lower mean and RMS distance than face collapse (e.g.
@@ -40,9 +41,9 @@ pub enum Method {
     /// keep every seam (pizza → 5k: 14.3k vs 25.2k faces).
     #[default]
     EdgeCollapse,
-    /// Algorithm v (§5.5): octree clustering with the attribute-extended quadric.
+    /// Algorithm v (§3.1.2): octree clustering with the attribute-extended quadric.
     Cluster,
-    /// Algorithm vo (§5.4): octree clustering keeping original vertices.
+    /// Algorithm vo (§3.1.1): octree clustering keeping original vertices.
     ClusterKeep,
 }
 
@@ -72,26 +73,26 @@ pub enum Halves {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Priority {
-    /// The collapse's quadric error (§5.6 [I] option "true cost"; the thesis' §6.4 reading).
+    /// The collapse's quadric error (the thesis' §6.4 reading; reading R11).
     #[default]
     Quadric,
-    /// The thesis' cheap size estimate (§5.6 "Cost estimate", §3.2 reading).
+    /// The thesis' cheap size estimate (§3.2 "Cost estimate"; reading R11).
     Estimate,
 }
 
-/// How ill-conditioning is detected (§3.9, §10.8–10.9).
+/// How ill-conditioning is detected (§2.3.4, readings R6–R7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Conditioning {
-    /// Condition number of the reduced 3×3 (Schur) matrix — the fix of §10.9.
+    /// Condition number of the reduced 3×3 (Schur) matrix — the fix of reading R7.
     #[default]
     Reduced,
     /// Condition number of the full (3 + k·m) matrix, as printed; with the recommended
-    /// weights it flags every quadric (§10.9). For comparison only.
+    /// weights it flags every quadric (reading R7). For comparison only.
     ThesisLiteral,
 }
 
-/// What an ill-conditioned quadric falls back to (§3.9).
+/// What an ill-conditioned quadric falls back to (§2.3.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Fallback {
@@ -108,7 +109,8 @@ pub enum Fallback {
 #[serde(deny_unknown_fields, default)]
 pub struct DecimateParams {
     pub method: Method,
-    /// Stop at this many faces (face collapse lands within 4 of it, §5.6 step 9).
+    /// Stop at this many faces (face collapse lands within 4 of it,
+    /// §3.2: it stops as soon as the count is at or below the target).
     pub target_faces: Option<usize>,
     /// Largest error a collapse may have, as a fraction of the bounding-box diagonal (RMS
     /// distance of the merged vertex from the planes it summarises).
@@ -126,7 +128,7 @@ pub struct DecimateParams {
     /// collapse's texture deviation on every scan with seams, but make face collapse, which
     /// merges three vertices at once, stop short of the target on pizza).
     pub seam_weight: Option<f64>,
-    /// λ_geom, λ_tex, λ_normal of §3.7. Table 5.1 recommends 1, 1e-17, 1e-17; our default
+    /// λ_geom, λ_tex, λ_normal of §2.3.2. Table 5.1 recommends 1, 1e-17, 1e-17; our default
     /// λ_tex is 0.05 (w = 0.0025 on texture coordinates in [0,1] against a unit-box
     /// geometry): it lowers the colour deviation on a textured face for a distance still
     /// below MeshLab's (figures in docs/decimation.md, "Measurements behind rules in the
@@ -134,7 +136,7 @@ pub struct DecimateParams {
     pub geometry_weight: f64,
     pub texture_weight: f64,
     pub normal_weight: f64,
-    /// Use w = λ² (Hoppe's form, §3.7 default) rather than w = λ (§10.6).
+    /// Use w = λ² (Hoppe's form, §2.3.2 default) rather than w = λ (reading R5).
     pub squared_weights: bool,
     pub priority: Priority,
     /// Research only: set from the recipe's `[experimental.decimate]` table
@@ -142,12 +144,12 @@ pub struct DecimateParams {
     /// form as it always was, so that recipes keep their hash.
     #[serde(skip_deserializing)]
     pub conditioning: Conditioning,
-    /// Condition-number threshold (§10.8: 1e8 from the class text; the GUI said ≥ 1e10).
+    /// Condition-number threshold (reading R6: 1e8 from the class text; the GUI said ≥ 1e10).
     pub max_condition: f64,
     pub fallback: Fallback,
     /// Largest change (degrees) of a surviving triangle's normal in one collapse.
     pub max_normal_change: f64,
-    /// Link condition, flip, texture-flip and degeneracy guards (§5.6 [D]); off is the
+    /// Link condition, flip, texture-flip and degeneracy guards (§3.2 [D]); off is the
     /// thesis-literal behaviour and loses the guarantees. Research only, as `conditioning`.
     #[serde(skip_deserializing)]
     pub guards: bool,
@@ -186,7 +188,7 @@ impl Default for DecimateParams {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Experimental {
-    /// `thesis-literal`: the condition number of the full matrix, as printed (§10.9).
+    /// `thesis-literal`: the condition number of the full matrix, as printed (reading R7).
     pub conditioning: Conditioning,
     /// `false`: no link, flip, texture-flip or degeneracy guards.
     pub guards: bool,
@@ -433,7 +435,7 @@ pub struct DecimateReport {
     pub stop_note: Option<String>,
     /// Candidate evaluations (quadric solves) in the collapse loop.
     pub evaluations: usize,
-    /// Applied collapses that used the ill-conditioned fallback (§3.9).
+    /// Applied collapses that used the ill-conditioned fallback (§2.3.4).
     pub ill_conditioned: usize,
     /// Vertices by class at the start: interior, border, seam, fixed.
     pub interior_vertices: usize,

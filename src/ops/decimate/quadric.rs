@@ -1,21 +1,21 @@
-//! Hoppe's attribute-extended quadric (spec/decimation.md §3.6, thesis §2.3.2, eqs.
+//! Hoppe's attribute-extended quadric (thesis §2.3.2, eqs.
 //! 2.8–2.12) in compact form, and the wedge-aware vertex quadric of dimension 3 + k·m
-//! (§5.6, eqs. 3.4–3.6) minimised through its Schur complement (§3.8).
+//! (§3.2, eqs. 3.4–3.6) minimised through its Schur complement (§2.3.3).
 //!
-//! Storage per quadric is the thesis' "11 + 4m" numbers (§3.6): the weighted symmetric
+//! Storage per quadric is the thesis' "11 + 4m" numbers (§2.3.2): the weighted symmetric
 //! 3×3 position block `p`, the weighted linear term `beta`, the weighted constant `c`, and
 //! for the attribute block the *unweighted* area sums `g_j = Σ a·g_j`, `delta_j = Σ a·d_j`
 //! and `alpha = Σ a`. The attribute block of the full matrix is then `−w_j·g_j` (coupling),
 //! `w_j·alpha` (diagonal) and `−w_j·delta_j` (linear term), so nothing is lost by keeping
 //! those parts unweighted, and the optimal attributes `s_j = (g_j·p + delta_j)/alpha` do not
-//! depend on the weights at all (§3.8 [D]).
+//! depend on the weights at all (§2.3.3 [D]).
 //!
-//! Errata applied (§10): the plane offset is `d = −n·p1` (§10.1, the thesis prints
-//! `d = n·p1`); the attribute block of (2.11) is `g gᵀ`, not `n nᵀ` (§10.2); the attribute
-//! term is squared (§10.3); the extended quadric is area-weighted as a whole (§10.5).
+//! Readings applied (docs/decimation.md): the plane offset is `d = −n·p1` (reading R1, the thesis prints
+//! `d = n·p1`); the attribute block of (2.11) is `g gᵀ`, not `n nᵀ` (reading R2); the attribute
+//! term is squared (reading R3); the extended quadric is area-weighted as a whole (reading R4).
 
 /// Per-quadric weights: `geom` multiplies the plane term, `attr[j]` attribute `j`'s term.
-/// These are the *w* of §3.7 (the caller decides whether they are λ or λ²).
+/// These are the *w* of §2.3.2 (the caller decides whether they are λ or λ²).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Weights<const M: usize> {
     pub geom: f64,
@@ -93,7 +93,7 @@ pub(crate) fn sym_mul(m: &[f64; 6], v: [f64; 3]) -> [f64; 3] {
 /// The linear attribute field of one triangle (eq. 2.10): `s_j(p) = g_j·p + d_j` with
 /// `g_j` in the triangle's plane. Solved in closed form with the dual basis of the edge
 /// vectors instead of the 4×4 system (same solution: the last row of (2.10) only says
-/// `g_j ⊥ n`). `None` for a degenerate triangle (the system is singular, §3.6 [D]).
+/// `g_j ⊥ n`). `None` for a degenerate triangle (the system is singular, §2.3.2 [D]).
 pub fn attribute_gradients<const M: usize>(
     p: [[f64; 3]; 3],
     s: [[f64; M]; 3],
@@ -122,7 +122,7 @@ pub fn attribute_gradients<const M: usize>(
 }
 
 impl<const M: usize> Quadric<M> {
-    /// The area-weighted quadric of one triangle (eqs. 2.9–2.12 with the weights of §3.7
+    /// The area-weighted quadric of one triangle (eqs. 2.9–2.12 with the weights of §2.3.2
     /// [D] and the errata in the module comment). `None` for a zero-area triangle.
     pub fn from_triangle(p: [[f64; 3]; 3], s: [[f64; M]; 3], w: &Weights<M>) -> Option<Self> {
         let nvec = cross(sub(p[1], p[0]), sub(p[2], p[0]));
@@ -132,7 +132,7 @@ impl<const M: usize> Quadric<M> {
         }
         let n = scale(nvec, 1.0 / len);
         let area = 0.5 * len;
-        // §10.1: d = −n·p1 so that n·v + d is the signed distance of v from the plane.
+        // reading R1: d = −n·p1 so that n·v + d is the signed distance of v from the plane.
         let d = -dot(n, p[0]);
         let (g, dj) = attribute_gradients(p, s)?;
         let mut q = Quadric::<M> {
@@ -182,7 +182,7 @@ impl<const M: usize> Quadric<M> {
         );
     }
 
-    /// The optimal attributes at position `p` (§3.8 [D]): the area-weighted mean of the
+    /// The optimal attributes at position `p` (§2.3.3 [D]): the area-weighted mean of the
     /// summed faces' linear predictions, independent of the weights. `None` without area.
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
@@ -218,7 +218,7 @@ fn add_attr<const M: usize>(
     *s.2 += o.2;
 }
 
-/// The optimal attributes at position `p` (§3.8 [D]) of an attribute part `(g, delta,
+/// The optimal attributes at position `p` (§2.3.3 [D]) of an attribute part `(g, delta,
 /// alpha)`: the area-weighted mean of the summed faces' linear predictions. `None` without
 /// area.
 #[inline]
@@ -267,7 +267,7 @@ impl<const M: usize> AttrPart<M> {
         );
     }
 
-    /// Optimal attributes at `p` (§3.8 [D]), `None` without area.
+    /// Optimal attributes at `p` (§2.3.3 [D]), `None` without area.
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
         attributes_at(&self.g, &self.delta, self.alpha, p)
@@ -289,7 +289,7 @@ impl<const M: usize> AttrPart<M> {
 /// The attribute parts of all wedges, stored compactly (issue #5, peak memory): the
 /// texture-coordinate part in f64, the normal part (the last three attributes when the mesh
 /// has normals) in f32. Normals only ever come out of the quadric as directions that are
-/// renormalised (§10.12) and written as f32, and with the default normal weight (§3.7,
+/// renormalised (reading R9) and written as f32, and with the default normal weight (§2.3.2,
 /// 1e-17) their Schur terms are far below the f64 resolution of the position system, so
 /// f32 sums lose nothing that reaches the output; the texture part feeds the position
 /// system with real weight and stays f64. For a mesh with texture coordinates and normals
@@ -502,8 +502,8 @@ impl<const M: usize> Quadric<M> {
     }
 }
 
-/// The wedge-aware vertex quadric (§5.6, eqs. 3.4–3.6) reduced to position by the Schur
-/// complement (§3.8): after the k wedge blocks are eliminated,
+/// The wedge-aware vertex quadric (§3.2, eqs. 3.4–3.6) reduced to position by the Schur
+/// complement (§2.3.3): after the k wedge blocks are eliminated,
 /// `Q_red(p) = pᵀ M p + 2 rᵀ p + c_red` with
 /// `M = Σ_w P_w − Σ_w Σ_j w_j G_wj G_wjᵀ / α_w`, `r = Σ_w β_w − Σ_w Σ_j w_j δ_wj G_wj / α_w`,
 /// and each wedge's optimal attributes are `s_wj = (G_wj·p + δ_wj)/α_w`. Only a 3×3 system
@@ -586,7 +586,7 @@ impl Reduced {
     }
 
     /// Minimises Q_red. When the reduced matrix's condition number exceeds `max_cond` the
-    /// system is ill-conditioned (§3.9); then the position is `fallback` (the mean of the
+    /// system is ill-conditioned (§2.3.4); then the position is `fallback` (the mean of the
     /// merged vertices, thesis §3.1.2) in the directions the quadric does not determine:
     /// with `regularise`, `(M + μI)p = −r + μ·fallback` with `μ = λ_max / max_cond`, which is
     /// exactly the mean when the quadric is fully degenerate and never has a larger error
@@ -688,7 +688,7 @@ pub fn solve_sym3(m: &[f64; 6], b: [f64; 3]) -> Option<[f64; 3]> {
 }
 
 /// The dense (3 + k·m) matrix A and vector b of the wedge-aware quadric (eqs. 3.4–3.6),
-/// for the thesis-literal conditioning test and as a test oracle (§12).
+/// for the thesis-literal conditioning test and as a test oracle.
 pub fn dense_wedge_system<const M: usize>(
     wedges: &[Quadric<M>],
     w: &Weights<M>,
@@ -758,7 +758,7 @@ pub fn dense_sym_eigenvalues(mut a: Vec<Vec<f64>>) -> Vec<f64> {
     (0..n).map(|i| a[i][i]).collect()
 }
 
-/// Thesis-literal condition number of the full (3 + k·m) matrix (§3.9; see §10.9 for why
+/// Thesis-literal condition number of the full (3 + k·m) matrix (§2.3.4; see reading R7 for why
 /// it flags every quadric with the recommended weights).
 pub fn dense_condition_number<const M: usize>(wedges: &[Quadric<M>], w: &Weights<M>) -> f64 {
     let (a, _, _) = dense_wedge_system(wedges, w);
@@ -888,7 +888,7 @@ mod tests {
 
     #[test]
     fn thesis_literal_condition_number_rejects_tiny_weights() {
-        // §10.9: with λ = 1e-17 the full matrix has cond ≳ w_p / (3 w_j) ≫ 1e8, while the
+        // reading R7: with λ = 1e-17 the full matrix has cond ≳ w_p / (3 w_j) ≫ 1e8, while the
         // reduced 3×3 matrix of a curved vertex is well conditioned.
         let w = Weights::<2> {
             geom: 1.0,

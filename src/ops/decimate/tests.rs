@@ -250,7 +250,7 @@ fn estimate_priority_and_thesis_literal_modes_run() {
     };
     let (out, r) = decimate(&m, &p).unwrap();
     assert!(out.triangles.len() <= 200);
-    // §10.9: read literally, every free collapse falls back.
+    // reading R7: read literally, every free collapse falls back.
     assert!(r.ill_conditioned > 0);
 }
 

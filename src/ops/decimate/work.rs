@@ -1,9 +1,9 @@
-//! The working mesh of the collapse decimators (spec/decimation.md §4.2 `WedgeScene`, §12):
+//! The working mesh of the collapse decimators (the thesis' `WedgeScene`, §6.4):
 //! unit-box-normalised f64 positions, wedges with their attributes and (3+m) quadrics,
 //! triangles of wedge indices, and per-vertex corner lists kept as linked lists so that a
 //! merge relinks in place (no allocation per collapse).
 //!
-//! One merge operation serves both face collapse (three vertices, §5.6) and edge collapse
+//! One merge operation serves both face collapse (three vertices, §3.2) and edge collapse
 //! (two): [`Work::evaluate`] places the new vertex, [`Work::check`] runs the guards and
 //! [`Work::apply`] performs it.
 
@@ -191,7 +191,7 @@ pub struct Config {
 /// Where the merged vertex goes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Placement {
-    /// Minimiser of the wedge-aware quadric (§5.6 step 5).
+    /// Minimiser of the wedge-aware quadric (§3.2).
     Free,
     /// At the position of S[i], which keeps its place and its wedges' attributes (a
     /// fixed, seam or border vertex absorbing neighbours: a half-edge collapse onto it).
@@ -211,7 +211,7 @@ pub struct Plan {
     pub red: Reduced,
 }
 
-/// Wedges of the merged vertices that end up as one wedge (thesis §5.6 step 3).
+/// Wedges of the merged vertices that end up as one wedge (thesis §3.2, Fig. 3.3).
 #[derive(Debug, Clone, Copy)]
 pub struct Group<const M: usize> {
     pub rep: u32,
@@ -329,7 +329,7 @@ pub struct Work<'a, const M: usize> {
     /// Attribute part of each wedge quadric.
     pub wq: WedgeQuadrics<M>,
     /// Position part of each vertex quadric, summed over its wedges and reduced (their
-    /// attribute blocks eliminated, §3.8).
+    /// attribute blocks eliminated, §2.3.3).
     pub vred: Vec<Reduced>,
     pub wchanged: Vec<bool>,
     pub live: usize,
@@ -411,7 +411,7 @@ impl<'a, const M: usize> Work<'a, M> {
         );
     }
 
-    /// Each wedge's quadric is the sum of the face quadrics of its triangles (§5.6
+    /// Each wedge's quadric is the sum of the face quadrics of its triangles (§3.2
     /// "Initial quadrics"); each vertex keeps the position part of its wedges' sum, reduced.
     /// One pass in parallel over vertices: each face quadric is built once per corner, its
     /// position part summed into the vertex and its attribute part into the corner's wedge
@@ -698,7 +698,7 @@ impl<'a, const M: usize> Work<'a, M> {
     /// The placement rules from the vertex classes (seam and border rules). A seam
     /// (border) vertex only moves along its seam (border): onto a neighbour across a seam
     /// (border) edge, so that output seams run through input seam vertices only (as
-    /// meshoptimizer's seam collapses, peers.md §2.1); a fixed vertex may absorb such a
+    /// meshoptimizer's seam collapses); a fixed vertex may absorb such a
     /// neighbour the same way, and interior vertices merge into whichever of these they
     /// meet. Returns up to two candidate anchors (indices into S; none = free placement).
     /// `along(i, j)` says whether S[i]–S[j] is a seam (border) edge; `None` skips that
@@ -931,7 +931,7 @@ impl<'a, const M: usize> Work<'a, M> {
         }
     }
 
-    /// Wedge merging (§5.6 step 3): the wedges at S of each deleted triangle unite
+    /// Wedge merging (§3.2, Fig. 3.3): the wedges at S of each deleted triangle unite
     /// (union-find over the scratch's wedges, the smaller place as the root).
     #[inline]
     fn unite_dead_wedges(&self, s: &[u32], sc: &mut Scratch<M>) {
@@ -1203,7 +1203,7 @@ impl<'a, const M: usize> Work<'a, M> {
         n
     }
 
-    /// The thesis' cost estimate for a face (§5.6 "Cost estimate", [I] formula): weighted
+    /// The thesis' cost estimate for a face (§3.2 "Cost estimate", [I] formula): weighted
     /// mean squared deviation of the corner values from their mean.
     pub fn estimate(&self, t: usize) -> f64 {
         let tri = self.tris[t];
@@ -1223,8 +1223,8 @@ impl<'a, const M: usize> Work<'a, M> {
 
     /// The output mesh: surviving triangles in their input order with their origins and
     /// materials; moved vertices mapped back from the unit box, unmoved ones bit-exact;
-    /// changed attributes appended as new texture coordinates / normals (§10.15), normals
-    /// renormalised (§10.12).
+    /// changed attributes appended as new texture coordinates / normals (reading R10), normals
+    /// renormalised (reading R9).
     pub fn into_mesh(mut self) -> Mesh {
         // What the output does not need goes first, so that the output is built in the
         // memory they held (peak memory, issue #5).
