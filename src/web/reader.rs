@@ -55,6 +55,18 @@ pub enum Cursor {
     After(i64),
 }
 
+impl Cursor {
+    /// The id order a page is fetched in: newest first, except the page before a given
+    /// one, which is fetched oldest first from its id and turned round ([`page_of`]).
+    pub fn sql_order(self) -> &'static str {
+        if matches!(self, Cursor::After(_)) {
+            "ASC"
+        } else {
+            "DESC"
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct JobQuery {
     pub state: Option<JobState>,
@@ -283,11 +295,7 @@ fn job_filter(q: &JobQuery) -> (String, Vec<Box<dyn ToSql>>) {
 impl DashboardReader for SqliteReader {
     fn jobs(&self, q: &JobQuery) -> Result<JobPage> {
         let (filter, mut values) = job_filter(q);
-        let order = if matches!(q.cursor, Cursor::After(_)) {
-            "ASC"
-        } else {
-            "DESC"
-        };
+        let order = q.cursor.sql_order();
         // The page's ids first, from the indexes alone; then only those (wide) rows.
         let sql = format!(
             "SELECT {JOB_COLUMNS} FROM job WHERE id IN

@@ -118,11 +118,7 @@ fn refs(values: &[Param]) -> Vec<&(dyn ToSql + Sync)> {
 impl DashboardReader for PgReader {
     fn jobs(&self, q: &JobQuery) -> Result<JobPage> {
         let (filter, mut values) = job_filter(q);
-        let order = if matches!(q.cursor, Cursor::After(_)) {
-            "ASC"
-        } else {
-            "DESC"
-        };
+        let order = q.cursor.sql_order();
         // One more than asked: tells whether there is a further page.
         values.push(Box::new(q.limit as i64 + 1));
         let sql = format!(
