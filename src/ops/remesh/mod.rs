@@ -54,8 +54,11 @@ pub struct RemeshParams {
     /// none when absent (scans are noisy: a small angle turns noise into lines).
     pub feature_angle: Option<f64>,
     /// `patches` only: seed spacing as a fraction of the bounding-box diagonal (thesis §4.2).
+    /// Left out of the resolved recipe when absent, so isotropic recipes keep their hash.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub f: Option<f64>,
     /// `patches` only: the n of the n×n tessellation of every Bézier patch (thesis §4.7).
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub patch_resolution: Option<usize>,
 }
 
