@@ -4,8 +4,8 @@
 //! nearly equilateral ones of a target edge length while keeping borders, texture seams,
 //! material changes and (optionally) sharp edges as lines, and carrying the texture: every
 //! corner's texture coordinate comes from the input, within its own chart ([`export`]).
-//! `method = "patches"` (the thesis' Bézier-patch remesher) is not built yet and is refused
-//! when the recipe is checked.
+//! `method = "patches"` ([`patches`]) is the thesis' Bézier-patch remesher for closed
+//! manifold meshes; it drops texture coordinates.
 
 pub mod build;
 pub mod corners;
@@ -13,6 +13,7 @@ pub mod export;
 pub mod isotropic;
 pub mod lines;
 pub mod ops;
+pub mod patches;
 pub mod quality;
 #[cfg(test)]
 mod tests;
@@ -31,7 +32,7 @@ pub enum Method {
     /// Split, collapse, flip, relax, project (Botsch & Kobbelt 2004).
     #[default]
     Isotropic,
-    /// The thesis' Bézier-patch pipeline (spec §3): not implemented; refused by `validate`.
+    /// The thesis' Bézier-patch pipeline ([`patches`]): closed manifold meshes only.
     Patches,
 }
 
@@ -52,6 +53,13 @@ pub struct RemeshParams {
     /// Edges whose two faces' normals differ by more than this (degrees) are kept as lines;
     /// none when absent (scans are noisy: a small angle turns noise into lines).
     pub feature_angle: Option<f64>,
+    /// `patches` only: seed spacing as a fraction of the bounding-box diagonal (thesis §4.2).
+    /// Left out of the resolved recipe when absent, so isotropic recipes keep their hash.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub f: Option<f64>,
+    /// `patches` only: the n of the n×n tessellation of every Bézier patch (thesis §4.7).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub patch_resolution: Option<usize>,
 }
 
 impl Default for RemeshParams {
@@ -63,6 +71,8 @@ impl Default for RemeshParams {
             target_faces: None,
             iterations: DEFAULT_ITERATIONS,
             feature_angle: None,
+            f: None,
+            patch_resolution: None,
         }
     }
 }
@@ -86,7 +96,10 @@ fn faces_for(area: f64, l: f64) -> f64 {
 impl RemeshParams {
     pub fn validate(&self) -> Result<(), String> {
         if self.method == Method::Patches {
-            return Err("method \"patches\" (the Bézier-patch remesher) is not available yet; use method = \"isotropic\"".into());
+            return self.validate_patches();
+        }
+        if self.f.is_some() || self.patch_resolution.is_some() {
+            return Err("f and patch_resolution belong to method = \"patches\"".into());
         }
         let given = [
             self.edge_length.is_some(),
@@ -121,6 +134,38 @@ impl RemeshParams {
             && !(a.is_finite() && (0.0..=180.0).contains(&a))
         {
             return Err(format!("feature_angle must be in 0..=180 degrees, not {a}"));
+        }
+        Ok(())
+    }
+
+    fn validate_patches(&self) -> Result<(), String> {
+        if self.edge_length.is_some()
+            || self.edge_fraction.is_some()
+            || self.feature_angle.is_some()
+        {
+            return Err("method \"patches\" takes f or target_faces (and patch_resolution), not edge_length, edge_fraction or feature_angle (those are method = \"isotropic\"'s)".into());
+        }
+        if self.f.is_some() && self.target_faces.is_some() {
+            return Err("give f or target_faces, not both".into());
+        }
+        if let Some(f) = self.f
+            && !(f.is_finite() && (patches::MIN_F..=1.0).contains(&f))
+        {
+            return Err(format!(
+                "f must be in {}..=1 (of the bounding-box diagonal), not {f}",
+                patches::MIN_F
+            ));
+        }
+        if self.target_faces == Some(0) {
+            return Err("target_faces must be at least 1".into());
+        }
+        if let Some(n) = self.patch_resolution
+            && !(1..=patches::MAX_RESOLUTION).contains(&n)
+        {
+            return Err(format!(
+                "patch_resolution must be in 1..={}, not {n}",
+                patches::MAX_RESOLUTION
+            ));
         }
         Ok(())
     }
@@ -163,6 +208,9 @@ pub struct RemeshReport {
     pub quality_before: AngleQuality,
     pub quality_after: AngleQuality,
     pub seconds: f64,
+    /// `patches` only: seeds, retries, regions, patches; texture coordinates are dropped.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub patches: Option<patches::PatchesReport>,
 }
 
 /// Why a mesh cannot be remeshed.
@@ -181,6 +229,8 @@ pub enum RemeshError {
         expected: f64,
         limit: f64,
     },
+    #[error("{0}")]
+    Patches(#[from] patches::PatchesError),
 }
 
 fn surface_area(mesh: &Mesh) -> f64 {
@@ -197,6 +247,9 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
     }
     if mesh.bounding_box_diagonal().partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Err(RemeshError::Flat);
+    }
+    if params.method == Method::Patches {
+        return remesh_patches(mesh, params, start);
     }
     let l = params.target_length(mesh);
     let expected = faces_for(surface_area(mesh), l);
@@ -230,6 +283,34 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         quality_before: AngleQuality::of(mesh),
         quality_after: AngleQuality::of(&out),
         seconds: start.elapsed().as_secs_f64(),
+        patches: None,
     };
     Ok((out, report))
+}
+
+fn remesh_patches(
+    mesh: &Mesh,
+    params: &RemeshParams,
+    start: Instant,
+) -> Result<(Mesh, RemeshReport), RemeshError> {
+    let n = params
+        .patch_resolution
+        .unwrap_or(patches::DEFAULT_RESOLUTION);
+    let (out, report) = patches::remesh(mesh, params.f, params.target_faces, n)?;
+    let quality_after = AngleQuality::of(&out);
+    Ok((
+        out,
+        RemeshReport {
+            method: Method::Patches,
+            edge_length: 0.0,
+            iterations: 0,
+            counts: isotropic::Counts::default(),
+            lines: LineCounts::default(),
+            locked_vertices: 0,
+            quality_before: AngleQuality::of(mesh),
+            quality_after,
+            seconds: start.elapsed().as_secs_f64(),
+            patches: Some(report),
+        },
+    ))
 }

@@ -1,0 +1,116 @@
+//! The output mesh (remeshing thesis §4.7, spec §3.7): every patch sampled on an n×n grid.
+//! Samples on a patch's corners and sides are made once and shared by both patches that
+//! meet there (a side is evaluated as its own quadratic curve, from its lower vertex id),
+//! so the output is watertight by construction: no welding tolerance (spec §10.20).
+//! Each grid cell is split along its shorter diagonal (the thesis' proposed improvement).
+
+use super::bezier::{Nets, control_net, curve, surface};
+use super::quads::FineQuads;
+use crate::mesh::model::{Index, Mesh, Wedge};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+pub fn tessellate(q: &FineQuads, nets: &Nets, n: usize) -> Mesh {
+    let n = n.max(1);
+    let inner = n - 1;
+    // Sides in a fixed order (first appearance), each with its n−1 inner samples.
+    let mut side_index: HashMap<(u32, u32), usize> = HashMap::with_capacity(2 * q.faces.len());
+    let mut sides: Vec<(u32, u32)> = Vec::new();
+    for face in &q.faces {
+        for k in 0..4 {
+            let (a, b) = (face[k], face[(k + 1) % 4]);
+            let key = (a.min(b), a.max(b));
+            side_index.entry(key).or_insert_with(|| {
+                sides.push(key);
+                sides.len() - 1
+            });
+        }
+    }
+    let mut positions: Vec<DVec3> = nets.corner.clone();
+    let side_base = positions.len();
+    let side_points: Vec<DVec3> = sides
+        .par_iter()
+        .flat_map_iter(|&(a, b)| {
+            let p = [
+                nets.corner[a as usize],
+                nets.side[&(a, b)],
+                nets.corner[b as usize],
+            ];
+            (1..n).map(move |k| curve(p, k as f64 / n as f64))
+        })
+        .collect();
+    positions.extend(side_points);
+    let face_base = positions.len();
+    let nets_per_face: Vec<[[DVec3; 3]; 3]> = (0..q.faces.len())
+        .into_par_iter()
+        .map(|f| control_net(q, nets, f))
+        .collect();
+    let face_points: Vec<DVec3> = nets_per_face
+        .par_iter()
+        .flat_map_iter(|b| {
+            (1..n).flat_map(move |i| {
+                (1..n).map(move |j| surface(b, i as f64 / n as f64, j as f64 / n as f64))
+            })
+        })
+        .collect();
+    positions.extend(face_points);
+    // Grid ids of face f at (i, j) in [0, n]².
+    let id = |f: usize, i: usize, j: usize| -> u32 {
+        let c = q.faces[f];
+        let on_side = |a: u32, b: u32, k: usize| -> u32 {
+            let (key, k) = if a < b { ((a, b), k) } else { ((b, a), n - k) };
+            (side_base + side_index[&key] * inner + (k - 1)) as u32
+        };
+        match (i, j) {
+            (0, 0) => c[0],
+            (i, 0) if i == n => c[1],
+            (i, j) if i == n && j == n => c[2],
+            (0, j) if j == n => c[3],
+            (i, 0) => on_side(c[0], c[1], i),
+            (i, j) if i == n => on_side(c[1], c[2], j),
+            (i, j) if j == n => on_side(c[3], c[2], i),
+            (0, j) => on_side(c[0], c[3], j),
+            (i, j) => (face_base + f * inner * inner + (i - 1) * inner + (j - 1)) as u32,
+        }
+    };
+    let triangles: Vec<([Index; 3], Index)> = (0..q.faces.len())
+        .into_par_iter()
+        .flat_map_iter(|f| {
+            let mut out = Vec::with_capacity(2 * n * n);
+            for i in 0..n {
+                for j in 0..n {
+                    let (a, b, c, d) = (
+                        id(f, i, j),
+                        id(f, i + 1, j),
+                        id(f, i + 1, j + 1),
+                        id(f, i, j + 1),
+                    );
+                    let p = |v: u32| positions[v as usize];
+                    if p(a).distance_squared(p(c)) <= p(b).distance_squared(p(d)) {
+                        out.push(([a, b, c], q.origin[f]));
+                        out.push(([a, c, d], q.origin[f]));
+                    } else {
+                        out.push(([a, b, d], q.origin[f]));
+                        out.push(([b, c, d], q.origin[f]));
+                    }
+                }
+            }
+            out
+        })
+        .collect();
+    let mut m = Mesh {
+        wedges: (0..positions.len() as Index)
+            .map(|v| Wedge {
+                vertex: v,
+                texcoord: None,
+                normal: None,
+            })
+            .collect(),
+        positions,
+        ..Mesh::default()
+    };
+    m.triangles = triangles.iter().map(|t| t.0).collect();
+    m.triangle_origins = triangles.iter().map(|t| t.1).collect();
+    m
+}
