@@ -1,4 +1,4 @@
-//! Remeshing (issue #24, spec/remeshing.md): the recipe step `remesh`.
+//! Remeshing (issue #24, docs/remeshing.md): the recipe step `remesh`.
 //!
 //! `method = "isotropic"` ([`isotropic`], Botsch & Kobbelt 2004) replaces the triangles by
 //! nearly equilateral ones of a target edge length while keeping borders, texture seams,

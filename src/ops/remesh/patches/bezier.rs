@@ -1,14 +1,14 @@
-//! Biquadratic Bézier patches from Doo–Sabin points (remeshing thesis §4.5, spec §3.5).
+//! Biquadratic Bézier patches from Doo–Sabin points (remeshing thesis §4.5).
 //!
 //! Every sub-quad of the refined quad mesh is one patch, centred on its Doo–Sabin point
-//! C₁₁. With the thesis' stencil rule (the b₂₀ typo fixed: C₂₀, not C₂₂, spec §10.12) the
+//! C₁₁. With the thesis' stencil rule (the b₂₀ typo fixed: C₂₀, not C₂₂, reading P4) the
 //! control net is: the centre b₁₁ = C₁₁; each side's middle control point the mean of the
 //! two Doo–Sabin points across that side; each corner the mean of the Doo–Sabin points of
 //! all sub-quads around that vertex. At a vertex of valence 4 that is the thesis'
 //! ¼(C₀₀+C₁₀+C₀₁+C₁₁); at a region corner of any valence it is the thesis' corner
 //! averaging (§4.5, "the average of the element-0 points of all regions sharing the
 //! corner"). Neighbours share their side control points exactly, so the patches meet (G0)
-//! by construction, without per-region orientation transforms (spec §10.14).
+//! by construction, without per-region orientation transforms (reading P6).
 
 use super::quads::FineQuads;
 use glam::DVec3;

@@ -1,4 +1,4 @@
-//! Pseudo-Voronoi cells (remeshing thesis §4.2, spec §3.2 steps 2a–2b): seeds at a minimum
+//! Pseudo-Voronoi cells (remeshing thesis §4.2): seeds at a minimum
 //! spacing, then every vertex joins the cell of its nearest seed along mesh edges.
 
 use glam::DVec3;
@@ -65,7 +65,7 @@ struct Item(f64, u32, u32);
 impl Eq for Item {}
 impl Ord for Item {
     fn cmp(&self, o: &Self) -> Ordering {
-        // Smallest distance first (spec §10.3: keep the smaller distance), then the lower
+        // Smallest distance first (reading P1: keep the smaller distance), then the lower
         // label, then the lower vertex: ties are broken the same way on every run.
         o.0.total_cmp(&self.0)
             .then(o.1.cmp(&self.1))

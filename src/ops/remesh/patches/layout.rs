@@ -1,10 +1,10 @@
-//! The region layout: the dual of the cell adjacency (remeshing thesis §4.3, spec §3.3
-//! and §8). Every input triangle whose three vertices lie in three different cells is a
+//! The region layout: the dual of the cell adjacency (remeshing thesis §4.3, and
+//! its failures, §5.5). Every input triangle whose three vertices lie in three different cells is a
 //! cell corner ("Voronoi vertex"); the three cell centres around it span one triangular
 //! region. Each region thus has exactly three corners by construction, and the layout is
 //! checked to be a closed manifold triangulation of the input's topology before any
 //! geometry is built on it: the thesis' failure (regions with the wrong corner count,
-//! spec §8) cannot reach the later stages.
+//! §5.5) cannot reach the later stages.
 
 use super::cells::Cells;
 use std::collections::HashMap;

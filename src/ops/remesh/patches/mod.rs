@@ -1,4 +1,4 @@
-//! `method = "patches"`: the remeshing thesis' Bézier-patch remesher (spec §3), rebuilt to
+//! `method = "patches"`: the remeshing thesis' Bézier-patch remesher (its §4), rebuilt to
 //! be robust (see docs/remeshing.md for what is built and what differs from the thesis).
 //!
 //! 1. [`cells`]: seeds at a spacing f·(bounding-box diagonal), pseudo-Voronoi cells by
@@ -40,11 +40,14 @@ pub struct PatchesReport {
     pub f: f64,
     pub patch_resolution: usize,
     pub seeds: usize,
-    /// Seeds added by the layout check (spec §8: the thesis' failure is caught here).
+    /// Seeds added by the layout check (the thesis' failure, its §6, is caught here).
     pub seeds_added: usize,
     pub retries: usize,
     pub regions: usize,
     pub patches: usize,
+    /// Output triangles facing against the input (see [`facing_against`]); 0 on smooth
+    /// closed shapes, a few per cent at thin parts for the spacing.
+    pub facing_against_input: usize,
     pub texcoords_dropped: bool,
 }
 
@@ -86,6 +89,55 @@ pub fn remesh(
     target_faces: Option<usize>,
     resolution: usize,
 ) -> Result<(Mesh, PatchesReport), PatchesError> {
+    let input = checked_input(mesh)?;
+    let resolution = resolution.max(1);
+    let (fraction, seeds) = choose_seeds(&input.graph, mesh, f, target_faces, resolution);
+    let initial = seeds.len();
+    let (layout, seeds, retries) = valid_layout(&input, seeds)?;
+    let expected = layout.regions.len() as f64 * faces_per_region(resolution);
+    if expected > super::MAX_OUTPUT_FACES {
+        return Err(PatchesError::TooDense {
+            regions: layout.regions.len(),
+            expected,
+            limit: super::MAX_OUTPUT_FACES,
+        });
+    }
+    let centres: Vec<_> = seeds.iter().map(|&s| mesh.positions[s as usize]).collect();
+    let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
+    let fine = quads::build(&layout, &centres, &bvh);
+    let nets = bezier::nets(&fine).map_err(PatchesError::Internal)?;
+    let out = tessellate::tessellate(&fine, &nets, resolution);
+    let facing_against_input = facing_against(mesh, &out);
+    if facing_against_input > 0 {
+        tracing::warn!(
+            triangles = facing_against_input,
+            "remesh patches: output triangles face against the input (thin parts at this f; a smaller f helps)"
+        );
+    }
+    let report = PatchesReport {
+        f: fraction,
+        patch_resolution: resolution,
+        seeds: seeds.len(),
+        seeds_added: seeds.len() - initial,
+        retries,
+        regions: layout.regions.len(),
+        patches: fine.faces.len(),
+        facing_against_input,
+        texcoords_dropped: mesh.has_texcoords(),
+    };
+    Ok((out, report))
+}
+
+/// What the layout needs of a checked input: its triangles without degenerate ones, the
+/// vertex graph and the Euler characteristic the layout must have.
+struct Input<'a> {
+    triangles: Vec<[u32; 3]>,
+    graph: Graph<'a>,
+    euler: i64,
+}
+
+/// Refuses an open, non-manifold or inconsistently oriented mesh; otherwise its graph.
+fn checked_input(mesh: &Mesh) -> Result<Input<'_>, PatchesError> {
     let topo = Topology::new(mesh);
     let open = topo.boundary_edges().count();
     if open > 0 {
@@ -128,90 +180,100 @@ pub fn remesh(
         neighbours,
         used,
     };
+    Ok(Input {
+        triangles,
+        graph,
+        euler,
+    })
+}
+
+/// The seeds at spacing `f`, or at the spacing whose seed count gives about `target_faces`:
+/// regions ≈ 2·cells on a closed surface, so the target asks for target / faces_per_region /
+/// 2 cells; the seeding is linear, so a few rounds of a square-root correction are cheap.
+fn choose_seeds(
+    graph: &Graph<'_>,
+    mesh: &Mesh,
+    f: Option<f64>,
+    target_faces: Option<usize>,
+    resolution: usize,
+) -> (f64, Vec<u32>) {
     let diag = mesh.bounding_box_diagonal();
-    let resolution = resolution.max(1);
-    // target_faces: regions ≈ 2·cells (closed surfaces), so choose the spacing whose seed
-    // count gives target / faces_per_region / 2 cells; the seeding is linear, so a few
-    // rounds of the square-root correction are cheap.
     let mut fraction = f.unwrap_or(DEFAULT_F);
-    let mut seeds = cells::spaced_seeds(&graph, fraction * diag);
-    if let Some(target) = target_faces {
-        let want = (target as f64 / faces_per_region(resolution) / 2.0).max(4.0);
-        // Keep the closest seed count seen (the greedy seeding is not monotone in f).
-        let miss = |n: usize| (n as f64 / want).ln().abs();
-        let mut best = (fraction, seeds.clone());
-        for _ in 0..8 {
-            let ratio = (seeds.len() as f64 / want).sqrt();
-            if (ratio - 1.0).abs() < 0.05 {
-                break;
-            }
-            fraction *= ratio.clamp(0.25, 4.0);
-            seeds = cells::spaced_seeds(&graph, fraction * diag);
-            if miss(seeds.len()) < miss(best.1.len()) {
-                best = (fraction, seeds.clone());
-            }
+    let mut seeds = cells::spaced_seeds(graph, fraction * diag);
+    let Some(target) = target_faces else {
+        return (fraction, seeds);
+    };
+    let want = (target as f64 / faces_per_region(resolution) / 2.0).max(4.0);
+    // Keep the closest seed count seen (the greedy seeding is not monotone in f).
+    let miss = |n: usize| (n as f64 / want).ln().abs();
+    let mut best = (fraction, seeds.clone());
+    for _ in 0..8 {
+        let ratio = (seeds.len() as f64 / want).sqrt();
+        if (ratio - 1.0).abs() < 0.05 {
+            break;
         }
-        (fraction, seeds) = best;
+        fraction *= ratio.clamp(0.25, 4.0);
+        seeds = cells::spaced_seeds(graph, fraction * diag);
+        if miss(seeds.len()) < miss(best.1.len()) {
+            best = (fraction, seeds.clone());
+        }
     }
-    let initial = seeds.len();
+    best
+}
+
+/// Grows the cells and builds their dual until it is a valid closed triangulation: each
+/// retry adds a seed in every offending cell, at the cell's vertex farthest from its seed
+/// (the thesis leaves the rule unstated). The layout, the final seeds and the retries.
+fn valid_layout(
+    input: &Input<'_>,
+    mut seeds: Vec<u32>,
+) -> Result<(layout::Layout, Vec<u32>, usize), PatchesError> {
     let mut retries = 0;
-    let layout = loop {
-        let grown = cells::grow(&graph, seeds);
-        match layout::dual(&grown, &triangles, euler) {
-            Ok(l) => {
-                seeds = grown.seeds;
-                break l;
-            }
-            Err(bad) => {
-                if retries == MAX_RETRIES {
-                    return Err(PatchesError::Layout {
-                        retries,
-                        reason: bad.reason,
-                    });
-                }
-                retries += 1;
-                // Spec §10.5: the new seed is the cell's vertex farthest from its seed.
-                let mut far: Vec<(f64, u32)> = vec![(-1.0, u32::MAX); grown.seeds.len()];
-                for (v, &l) in grown.label.iter().enumerate() {
-                    if l != u32::MAX {
-                        let d = grown.distance[v];
-                        if d > far[l as usize].0 {
-                            far[l as usize] = (d, v as u32);
-                        }
-                    }
-                }
-                seeds = grown.seeds;
-                for c in bad.bad_cells {
-                    let (d, v) = far[c as usize];
-                    if d > 0.0 && v != u32::MAX && !seeds.contains(&v) {
-                        seeds.push(v);
-                    }
-                }
+    loop {
+        let grown = cells::grow(&input.graph, seeds);
+        let bad = match layout::dual(&grown, &input.triangles, input.euler) {
+            Ok(l) => return Ok((l, grown.seeds, retries)),
+            Err(bad) => bad,
+        };
+        if retries == MAX_RETRIES {
+            return Err(PatchesError::Layout {
+                retries,
+                reason: bad.reason,
+            });
+        }
+        retries += 1;
+        let mut far: Vec<(f64, u32)> = vec![(-1.0, u32::MAX); grown.seeds.len()];
+        for (v, &l) in grown.label.iter().enumerate() {
+            if l != u32::MAX && grown.distance[v] > far[l as usize].0 {
+                far[l as usize] = (grown.distance[v], v as u32);
             }
         }
-    };
-    let expected = layout.regions.len() as f64 * faces_per_region(resolution);
-    if expected > super::MAX_OUTPUT_FACES {
-        return Err(PatchesError::TooDense {
-            regions: layout.regions.len(),
-            expected,
-            limit: super::MAX_OUTPUT_FACES,
-        });
+        seeds = grown.seeds;
+        for c in bad.bad_cells {
+            let (d, v) = far[c as usize];
+            if d > 0.0 && v != u32::MAX && !seeds.contains(&v) {
+                seeds.push(v);
+            }
+        }
     }
-    let centres: Vec<_> = seeds.iter().map(|&s| mesh.positions[s as usize]).collect();
-    let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
-    let fine = quads::build(&layout, &centres, &bvh);
-    let nets = bezier::nets(&fine).map_err(PatchesError::Internal)?;
-    let out = tessellate::tessellate(&fine, &nets, resolution);
-    let report = PatchesReport {
-        f: fraction,
-        patch_resolution: resolution,
-        seeds: seeds.len(),
-        seeds_added: seeds.len() - initial,
-        retries,
-        regions: layout.regions.len(),
-        patches: fine.faces.len(),
-        texcoords_dropped: mesh.has_texcoords(),
-    };
-    Ok((out, report))
+}
+
+/// Output triangles whose normal points against the input's at the input triangle they
+/// were projected onto (`triangle_origins`; the input's area-weighted vertex normals
+/// summed over that triangle): where a region folded in projection, at thin parts.
+pub fn facing_against(input: &Mesh, out: &Mesh) -> usize {
+    let normals = crate::metrics::distance::vertex_normals(input);
+    (0..out.triangles.len())
+        .filter(|&t| {
+            let Some(&o) = out.triangle_origins.get(t) else {
+                return false;
+            };
+            let n: glam::DVec3 = input
+                .triangle_vertices(o as usize)
+                .iter()
+                .map(|&v| normals[v as usize])
+                .sum();
+            out.triangle_cross(t).dot(n) < 0.0
+        })
+        .count()
 }

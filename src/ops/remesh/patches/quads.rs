@@ -1,12 +1,12 @@
-//! Quad regions and their Doo–Sabin points (remeshing thesis §4.4–§4.5, spec §3.4–§3.5).
+//! Quad regions and their Doo–Sabin points (remeshing thesis §4.4–§4.5).
 //!
 //! Each triangular region is split into three quads from its centre (the Eck / thesis §3.6
-//! fallback, spec §10.11) instead of being paired with a neighbour: the split always exists
+//! fallback, reading P3) instead of being paired with a neighbour: the split always exists
 //! (no matching, no backtracking, no odd region count, no bridge in the dual), and every
 //! quad's corners are a cell centre, two border midpoints and the region centre.
 //!
 //! Each quad is refined 4×4; the Doo–Sabin point of sub-quad (i, j) is the quad's
-//! parametrisation at ((2i+1)/8, (2j+1)/8) (thesis §4.5, spec §10.13). The parametrisation
+//! parametrisation at ((2i+1)/8, (2j+1)/8) (thesis §4.5, reading P5). The parametrisation
 //! built here is the bilinear map of the quad's corners (projected onto the input) followed
 //! by a closest-point projection onto the input surface; the thesis' harmonic map of the
 //! traced region is NOT built (see docs/remeshing.md).

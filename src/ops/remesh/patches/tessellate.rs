@@ -1,7 +1,7 @@
-//! The output mesh (remeshing thesis §4.7, spec §3.7): every patch sampled on an n×n grid.
+//! The output mesh (remeshing thesis §4.7): every patch sampled on an n×n grid.
 //! Samples on a patch's corners and sides are made once and shared by both patches that
 //! meet there (a side is evaluated as its own quadratic curve, from its lower vertex id),
-//! so the output is watertight by construction: no welding tolerance (spec §10.20).
+//! so the output is watertight by construction: no welding tolerance (reading P8).
 //! Each grid cell is split along its shorter diagonal (the thesis' proposed improvement).
 
 use super::bezier::{Nets, control_net, curve, surface};
