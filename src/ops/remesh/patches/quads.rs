@@ -47,91 +47,103 @@ fn bilinear(q: &[DVec3; 4], u: f64, v: f64) -> DVec3 {
 /// Builds the coarse quads of `layout` (three per region), refines them 4×4 with shared
 /// vertices along shared sides, and samples the Doo–Sabin points.
 pub fn build(layout: &Layout, centres: &[DVec3], bvh: &TriangleBvh<'_>) -> FineQuads {
-    let nc = layout.cells;
-    // Coarse vertices: cells, then region borders (dual edges), then region centres.
-    let mut edge_id: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut edge_ends: Vec<(u32, u32)> = Vec::new();
-    for r in &layout.regions {
-        for k in 0..3 {
-            let (a, b) = (r[k], r[(k + 1) % 3]);
-            let key = (a.min(b), a.max(b));
-            edge_id.entry(key).or_insert_with(|| {
-                edge_ends.push(key);
-                (nc + edge_ends.len() - 1) as u32
-            });
+    let coarse = Coarse::new(layout, centres, bvh);
+    let quads = coarse.quads(layout);
+    let (faces, samples, vertex_count) = refine(&quads, coarse.points.len() as u32);
+    let projected: Vec<(DVec3, u32)> = samples
+        .par_iter()
+        .map(|&(qi, u, v)| {
+            let q = quads[qi].map(|c| coarse.points[c as usize]);
+            project(bvh, bilinear(&q, u, v))
+        })
+        .collect();
+    FineQuads {
+        vertex_count,
+        faces,
+        points: projected.iter().map(|p| p.0).collect(),
+        origin: projected.iter().map(|p| p.1).collect(),
+    }
+}
+
+/// The coarse vertices: the cell centres, then one per region border (dual edge), then one
+/// per region centre, all on the input surface.
+struct Coarse {
+    points: Vec<DVec3>,
+    /// A border's vertex id, by its two cells (lower first).
+    edge_id: HashMap<(u32, u32), u32>,
+    /// Id of the first region-centre vertex.
+    first_centre: usize,
+}
+
+impl Coarse {
+    fn new(layout: &Layout, centres: &[DVec3], bvh: &TriangleBvh<'_>) -> Coarse {
+        let nc = layout.cells;
+        let mut edge_id: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut edge_ends: Vec<(u32, u32)> = Vec::new();
+        for r in &layout.regions {
+            for k in 0..3 {
+                let (a, b) = (r[k], r[(k + 1) % 3]);
+                let key = (a.min(b), a.max(b));
+                edge_id.entry(key).or_insert_with(|| {
+                    edge_ends.push(key);
+                    (nc + edge_ends.len() - 1) as u32
+                });
+            }
+        }
+        let mut flat: Vec<DVec3> = centres.to_vec();
+        flat.extend(
+            edge_ends
+                .iter()
+                .map(|&(a, b)| (centres[a as usize] + centres[b as usize]) * 0.5),
+        );
+        flat.extend(layout.regions.iter().map(|r| {
+            (centres[r[0] as usize] + centres[r[1] as usize] + centres[r[2] as usize]) / 3.0
+        }));
+        // Onto the surface (cell centres are on it already).
+        let points = flat
+            .par_iter()
+            .enumerate()
+            .map(|(i, &p)| if i < nc { p } else { project(bvh, p).0 })
+            .collect();
+        Coarse {
+            points,
+            edge_id,
+            first_centre: nc + edge_ends.len(),
         }
     }
-    let ne = edge_ends.len();
-    let mut flat: Vec<DVec3> = centres.to_vec();
-    flat.extend(
-        edge_ends
-            .iter()
-            .map(|&(a, b)| (centres[a as usize] + centres[b as usize]) * 0.5),
-    );
-    flat.extend(
-        layout.regions.iter().map(|r| {
-            (centres[r[0] as usize] + centres[r[1] as usize] + centres[r[2] as usize]) / 3.0
-        }),
-    );
-    // Coarse vertices onto the surface (cell centres are on it already).
-    let coarse: Vec<DVec3> = flat
-        .par_iter()
-        .enumerate()
-        .map(|(i, &p)| if i < nc { p } else { project(bvh, p).0 })
-        .collect();
-    let mut quads: Vec<[u32; 4]> = Vec::with_capacity(3 * layout.regions.len());
-    for (ri, r) in layout.regions.iter().enumerate() {
-        let e = |a: u32, b: u32| edge_id[&(a.min(b), a.max(b))];
-        let g = (nc + ne + ri) as u32;
-        let [a, b, c] = *r;
-        quads.push([a, e(a, b), g, e(c, a)]);
-        quads.push([b, e(b, c), g, e(a, b)]);
-        quads.push([c, e(c, a), g, e(b, c)]);
+
+    /// Three quads per region: corner, border midpoint, region centre, border midpoint.
+    fn quads(&self, layout: &Layout) -> Vec<[u32; 4]> {
+        let e = |a: u32, b: u32| self.edge_id[&(a.min(b), a.max(b))];
+        let mut quads: Vec<[u32; 4]> = Vec::with_capacity(3 * layout.regions.len());
+        for (ri, r) in layout.regions.iter().enumerate() {
+            let g = (self.first_centre + ri) as u32;
+            let [a, b, c] = *r;
+            quads.push([a, e(a, b), g, e(c, a)]);
+            quads.push([b, e(b, c), g, e(a, b)]);
+            quads.push([c, e(c, a), g, e(b, c)]);
+        }
+        quads
     }
-    // Fine vertices: coarse ones keep their ids; SUB-1 per coarse side, keyed by the side's
-    // ends and the step from the lower end; (SUB-1)² inside each quad.
-    let mut next = coarse.len() as u32;
+}
+
+/// A sub-quad's Doo–Sabin sample: (coarse quad, u, v).
+type Sample = (usize, f64, f64);
+
+/// Refines every quad SUB×SUB. Coarse vertices keep their ids; SUB−1 new ones per coarse
+/// side, shared by the two quads along it (keyed by the side's ends and the step from the
+/// lower end); (SUB−1)² inside each quad. The fine faces, their samples at
+/// ((2i+1)/8, (2j+1)/8), and the vertex count.
+fn refine(quads: &[[u32; 4]], coarse_count: u32) -> (Vec<[u32; 4]>, Vec<Sample>, usize) {
+    let mut next = coarse_count;
     let mut side: HashMap<(u32, u32, usize), u32> = HashMap::new();
     let mut faces = Vec::with_capacity(quads.len() * SUB * SUB);
-    let mut samples: Vec<(usize, f64, f64)> = Vec::with_capacity(quads.len() * SUB * SUB);
+    let mut samples: Vec<Sample> = Vec::with_capacity(quads.len() * SUB * SUB);
     for (qi, q) in quads.iter().enumerate() {
         let mut id = [[0u32; SUB + 1]; SUB + 1];
         for (i, row) in id.iter_mut().enumerate() {
             for (j, slot) in row.iter_mut().enumerate() {
-                let corner = match (i, j) {
-                    (0, 0) => Some(q[0]),
-                    (SUB, 0) => Some(q[1]),
-                    (SUB, SUB) => Some(q[2]),
-                    (0, SUB) => Some(q[3]),
-                    _ => None,
-                };
-                let along = if j == 0 {
-                    Some((q[0], q[1], i))
-                } else if i == SUB {
-                    Some((q[1], q[2], j))
-                } else if j == SUB {
-                    Some((q[3], q[2], i))
-                } else if i == 0 {
-                    Some((q[0], q[3], j))
-                } else {
-                    None
-                };
-                *slot = if let Some(v) = corner {
-                    v
-                } else if let Some((from, to, k)) = along {
-                    let key = if from < to {
-                        (from, to, k)
-                    } else {
-                        (to, from, SUB - k)
-                    };
-                    *side.entry(key).or_insert_with(|| {
-                        next += 1;
-                        next - 1
-                    })
-                } else {
-                    next += 1;
-                    next - 1
-                };
+                *slot = grid_vertex(q, i, j, &mut side, &mut next);
             }
         }
         for i in 0..SUB {
@@ -145,17 +157,45 @@ pub fn build(layout: &Layout, centres: &[DVec3], bvh: &TriangleBvh<'_>) -> FineQ
             }
         }
     }
-    let projected: Vec<(DVec3, u32)> = samples
-        .par_iter()
-        .map(|&(qi, u, v)| {
-            let q = quads[qi].map(|c| coarse[c as usize]);
-            project(bvh, bilinear(&q, u, v))
-        })
-        .collect();
-    FineQuads {
-        vertex_count: next as usize,
-        faces,
-        points: projected.iter().map(|p| p.0).collect(),
-        origin: projected.iter().map(|p| p.1).collect(),
+    (faces, samples, next as usize)
+}
+
+/// The id of grid vertex (i, j) of quad `q`: its corner, the shared vertex of its side, or a
+/// new interior one.
+fn grid_vertex(
+    q: &[u32; 4],
+    i: usize,
+    j: usize,
+    side: &mut HashMap<(u32, u32, usize), u32>,
+    next: &mut u32,
+) -> u32 {
+    let mut fresh = || {
+        *next += 1;
+        *next - 1
+    };
+    match (i, j) {
+        (0, 0) => return q[0],
+        (SUB, 0) => return q[1],
+        (SUB, SUB) => return q[2],
+        (0, SUB) => return q[3],
+        _ => {}
     }
+    let along = if j == 0 {
+        (q[0], q[1], i)
+    } else if i == SUB {
+        (q[1], q[2], j)
+    } else if j == SUB {
+        (q[3], q[2], i)
+    } else if i == 0 {
+        (q[0], q[3], j)
+    } else {
+        return fresh();
+    };
+    let (from, to, k) = along;
+    let key = if from < to {
+        (from, to, k)
+    } else {
+        (to, from, SUB - k)
+    };
+    *side.entry(key).or_insert_with(fresh)
 }

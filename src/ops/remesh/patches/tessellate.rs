@@ -11,25 +11,54 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
+/// The output mesh of the refined quads `q` with their control nets, n×n samples per patch.
 pub fn tessellate(q: &FineQuads, nets: &Nets, n: usize) -> Mesh {
     let n = n.max(1);
-    let inner = n - 1;
-    // Sides in a fixed order (first appearance), each with its n−1 inner samples.
-    let mut side_index: HashMap<(u32, u32), usize> = HashMap::with_capacity(2 * q.faces.len());
-    let mut sides: Vec<(u32, u32)> = Vec::new();
-    for face in &q.faces {
-        for k in 0..4 {
-            let (a, b) = (face[k], face[(k + 1) % 4]);
-            let key = (a.min(b), a.max(b));
-            side_index.entry(key).or_insert_with(|| {
-                sides.push(key);
-                sides.len() - 1
-            });
-        }
-    }
+    let sides = Sides::new(q);
     let mut positions: Vec<DVec3> = nets.corner.clone();
     let side_base = positions.len();
-    let side_points: Vec<DVec3> = sides
+    positions.extend(side_samples(&sides, nets, n));
+    let face_base = positions.len();
+    positions.extend(face_samples(q, nets, n));
+    let grid = Grid {
+        q,
+        n,
+        sides: &sides,
+        side_base,
+        face_base,
+    };
+    let triangles = grid.triangles(&positions);
+    mesh_of(positions, triangles)
+}
+
+/// Every patch side once, in a fixed order (first appearance), by its ends (lower first).
+struct Sides {
+    index: HashMap<(u32, u32), usize>,
+    ends: Vec<(u32, u32)>,
+}
+
+impl Sides {
+    fn new(q: &FineQuads) -> Sides {
+        let mut index: HashMap<(u32, u32), usize> = HashMap::with_capacity(2 * q.faces.len());
+        let mut ends: Vec<(u32, u32)> = Vec::new();
+        for face in &q.faces {
+            for k in 0..4 {
+                let (a, b) = (face[k], face[(k + 1) % 4]);
+                let key = (a.min(b), a.max(b));
+                index.entry(key).or_insert_with(|| {
+                    ends.push(key);
+                    ends.len() - 1
+                });
+            }
+        }
+        Sides { index, ends }
+    }
+}
+
+/// The n−1 inner samples of every side, as the side's own quadratic curve.
+fn side_samples(sides: &Sides, nets: &Nets, n: usize) -> Vec<DVec3> {
+    sides
+        .ends
         .par_iter()
         .flat_map_iter(|&(a, b)| {
             let p = [
@@ -39,28 +68,42 @@ pub fn tessellate(q: &FineQuads, nets: &Nets, n: usize) -> Mesh {
             ];
             (1..n).map(move |k| curve(p, k as f64 / n as f64))
         })
-        .collect();
-    positions.extend(side_points);
-    let face_base = positions.len();
+        .collect()
+}
+
+/// The (n−1)² inner samples of every patch.
+fn face_samples(q: &FineQuads, nets: &Nets, n: usize) -> Vec<DVec3> {
     let nets_per_face: Vec<[[DVec3; 3]; 3]> = (0..q.faces.len())
         .into_par_iter()
         .map(|f| control_net(q, nets, f))
         .collect();
-    let face_points: Vec<DVec3> = nets_per_face
+    nets_per_face
         .par_iter()
         .flat_map_iter(|b| {
             (1..n).flat_map(move |i| {
                 (1..n).map(move |j| surface(b, i as f64 / n as f64, j as f64 / n as f64))
             })
         })
-        .collect();
-    positions.extend(face_points);
-    // Grid ids of face f at (i, j) in [0, n]².
-    let id = |f: usize, i: usize, j: usize| -> u32 {
-        let c = q.faces[f];
+        .collect()
+}
+
+/// Where each patch's grid samples are among the output positions.
+struct Grid<'a> {
+    q: &'a FineQuads,
+    n: usize,
+    sides: &'a Sides,
+    side_base: usize,
+    face_base: usize,
+}
+
+impl Grid<'_> {
+    /// The output vertex of face `f` at grid point (i, j) in [0, n]².
+    fn id(&self, f: usize, i: usize, j: usize) -> u32 {
+        let (n, inner) = (self.n, self.n - 1);
+        let c = self.q.faces[f];
         let on_side = |a: u32, b: u32, k: usize| -> u32 {
             let (key, k) = if a < b { ((a, b), k) } else { ((b, a), n - k) };
-            (side_base + side_index[&key] * inner + (k - 1)) as u32
+            (self.side_base + self.sides.index[&key] * inner + (k - 1)) as u32
         };
         match (i, j) {
             (0, 0) => c[0],
@@ -71,34 +114,45 @@ pub fn tessellate(q: &FineQuads, nets: &Nets, n: usize) -> Mesh {
             (i, j) if i == n => on_side(c[1], c[2], j),
             (i, j) if j == n => on_side(c[3], c[2], i),
             (0, j) => on_side(c[0], c[3], j),
-            (i, j) => (face_base + f * inner * inner + (i - 1) * inner + (j - 1)) as u32,
+            (i, j) => (self.face_base + f * inner * inner + (i - 1) * inner + (j - 1)) as u32,
         }
-    };
-    let triangles: Vec<([Index; 3], Index)> = (0..q.faces.len())
-        .into_par_iter()
-        .flat_map_iter(|f| {
-            let mut out = Vec::with_capacity(2 * n * n);
-            for i in 0..n {
-                for j in 0..n {
-                    let (a, b, c, d) = (
-                        id(f, i, j),
-                        id(f, i + 1, j),
-                        id(f, i + 1, j + 1),
-                        id(f, i, j + 1),
-                    );
-                    let p = |v: u32| positions[v as usize];
-                    if p(a).distance_squared(p(c)) <= p(b).distance_squared(p(d)) {
-                        out.push(([a, b, c], q.origin[f]));
-                        out.push(([a, c, d], q.origin[f]));
-                    } else {
-                        out.push(([a, b, d], q.origin[f]));
-                        out.push(([b, c, d], q.origin[f]));
+    }
+
+    /// Two triangles per grid cell, split along the shorter diagonal, each with the input
+    /// triangle its patch's Doo–Sabin point was projected onto.
+    fn triangles(&self, positions: &[DVec3]) -> Vec<([Index; 3], Index)> {
+        let n = self.n;
+        (0..self.q.faces.len())
+            .into_par_iter()
+            .flat_map_iter(|f| {
+                let origin = self.q.origin[f];
+                let mut out = Vec::with_capacity(2 * n * n);
+                for i in 0..n {
+                    for j in 0..n {
+                        let (a, b, c, d) = (
+                            self.id(f, i, j),
+                            self.id(f, i + 1, j),
+                            self.id(f, i + 1, j + 1),
+                            self.id(f, i, j + 1),
+                        );
+                        let p = |v: u32| positions[v as usize];
+                        if p(a).distance_squared(p(c)) <= p(b).distance_squared(p(d)) {
+                            out.push(([a, b, c], origin));
+                            out.push(([a, c, d], origin));
+                        } else {
+                            out.push(([a, b, d], origin));
+                            out.push(([b, c, d], origin));
+                        }
                     }
                 }
-            }
-            out
-        })
-        .collect();
+                out
+            })
+            .collect()
+    }
+}
+
+/// A mesh of bare positions: one wedge per vertex, no texture coordinates or normals.
+fn mesh_of(positions: Vec<DVec3>, triangles: Vec<([Index; 3], Index)>) -> Mesh {
     let mut m = Mesh {
         wedges: (0..positions.len() as Index)
             .map(|v| Wedge {
