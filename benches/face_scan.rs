@@ -86,8 +86,9 @@ fn bench(c: &mut Criterion) {
     let dir = std::env::temp_dir().join(format!("scanmill-face-scan-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temporary folder");
     let Some(input) = make_scan(&dir) else {
-        eprintln!("face_scan bench: {FACE} not found; skipped");
-        return;
+        panic!(
+            "face_scan bench: {FACE} not found (the benches read ../shared/data beside the checkout)"
+        );
     };
     let out = dir.join("out");
 

@@ -70,8 +70,9 @@ fn timed<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, f64) {
 
 fn bench(c: &mut Criterion) {
     let Some(face) = face_400k() else {
-        eprintln!("metrics bench: {FACE} not found; skipped");
-        return;
+        panic!(
+            "metrics bench: {FACE} not found (the benches read ../shared/data beside the checkout)"
+        );
     };
     let (noisy, noise) = noisy_copy(&face, &NoiseOptions::default());
     let options = MetricsOptions::default();
