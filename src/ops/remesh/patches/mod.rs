@@ -22,6 +22,7 @@ use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
 use cells::Graph;
 use serde::Serialize;
+use std::collections::HashMap;
 
 pub const DEFAULT_F: f64 = 0.1;
 /// The smallest seed spacing fraction a recipe may ask for.
@@ -30,6 +31,37 @@ pub const DEFAULT_RESOLUTION: usize = 2;
 pub const MAX_RESOLUTION: usize = 64;
 /// Seed retries when the layout is not a valid closed triangulation.
 pub const MAX_RETRIES: usize = 12;
+/// The sides of `polygons` (closed vertex loops), each once, by its ends (lower first), in
+/// the order they first appear, with each side's index in that order: the deterministic
+/// numbering the coarse border vertices and the patch sides are made in.
+pub(crate) struct UniqueSides {
+    pub index: HashMap<(u32, u32), usize>,
+    pub ends: Vec<(u32, u32)>,
+}
+
+impl UniqueSides {
+    pub fn of<const N: usize>(polygons: &[[u32; N]]) -> UniqueSides {
+        let mut index = HashMap::with_capacity(polygons.len() * N / 2);
+        let mut ends = Vec::new();
+        for poly in polygons {
+            for k in 0..N {
+                let (a, b) = (poly[k], poly[(k + 1) % N]);
+                let key = (a.min(b), a.max(b));
+                index.entry(key).or_insert_with(|| {
+                    ends.push(key);
+                    ends.len() - 1
+                });
+            }
+        }
+        UniqueSides { index, ends }
+    }
+
+    /// The index of the side between `a` and `b`, either way round.
+    pub fn of_ends(&self, a: u32, b: u32) -> usize {
+        self.index[&(a.min(b), a.max(b))]
+    }
+}
+
 /// Output triangles per region: 3 quads × 16 patches × 2n².
 fn faces_per_region(n: usize) -> f64 {
     96.0 * (n * n) as f64

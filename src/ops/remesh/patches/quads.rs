@@ -11,6 +11,7 @@
 //! by a closest-point projection onto the input surface; the thesis' harmonic map of the
 //! traced region is NOT built (see docs/remeshing.md).
 
+use super::UniqueSides;
 use super::layout::Layout;
 use crate::geom::bvh::TriangleBvh;
 use glam::DVec3;
@@ -69,30 +70,19 @@ pub fn build(layout: &Layout, centres: &[DVec3], bvh: &TriangleBvh<'_>) -> FineQ
 /// per region centre, all on the input surface.
 struct Coarse {
     points: Vec<DVec3>,
-    /// A border's vertex id, by its two cells (lower first).
-    edge_id: HashMap<(u32, u32), u32>,
-    /// Id of the first region-centre vertex.
-    first_centre: usize,
+    /// The region borders; border i is coarse vertex `cells + i`.
+    borders: UniqueSides,
+    cells: usize,
 }
 
 impl Coarse {
     fn new(layout: &Layout, centres: &[DVec3], bvh: &TriangleBvh<'_>) -> Coarse {
         let nc = layout.cells;
-        let mut edge_id: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut edge_ends: Vec<(u32, u32)> = Vec::new();
-        for r in &layout.regions {
-            for k in 0..3 {
-                let (a, b) = (r[k], r[(k + 1) % 3]);
-                let key = (a.min(b), a.max(b));
-                edge_id.entry(key).or_insert_with(|| {
-                    edge_ends.push(key);
-                    (nc + edge_ends.len() - 1) as u32
-                });
-            }
-        }
+        let borders = UniqueSides::of(&layout.regions);
         let mut flat: Vec<DVec3> = centres.to_vec();
         flat.extend(
-            edge_ends
+            borders
+                .ends
                 .iter()
                 .map(|&(a, b)| (centres[a as usize] + centres[b as usize]) * 0.5),
         );
@@ -107,17 +97,18 @@ impl Coarse {
             .collect();
         Coarse {
             points,
-            edge_id,
-            first_centre: nc + edge_ends.len(),
+            borders,
+            cells: nc,
         }
     }
 
     /// Three quads per region: corner, border midpoint, region centre, border midpoint.
     fn quads(&self, layout: &Layout) -> Vec<[u32; 4]> {
-        let e = |a: u32, b: u32| self.edge_id[&(a.min(b), a.max(b))];
+        let e = |a: u32, b: u32| (self.cells + self.borders.of_ends(a, b)) as u32;
+        let first_centre = self.cells + self.borders.ends.len();
         let mut quads: Vec<[u32; 4]> = Vec::with_capacity(3 * layout.regions.len());
         for (ri, r) in layout.regions.iter().enumerate() {
-            let g = (self.first_centre + ri) as u32;
+            let g = (first_centre + ri) as u32;
             let [a, b, c] = *r;
             quads.push([a, e(a, b), g, e(c, a)]);
             quads.push([b, e(b, c), g, e(a, b)]);

@@ -4,17 +4,17 @@
 //! so the output is watertight by construction: no welding tolerance (reading P8).
 //! Each grid cell is split along its shorter diagonal (the thesis' proposed improvement).
 
+use super::UniqueSides;
 use super::bezier::{Nets, control_net, curve, surface};
 use super::quads::FineQuads;
 use crate::mesh::model::{Index, Mesh, Wedge};
 use glam::DVec3;
 use rayon::prelude::*;
-use std::collections::HashMap;
 
 /// The output mesh of the refined quads `q` with their control nets, n×n samples per patch.
 pub fn tessellate(q: &FineQuads, nets: &Nets, n: usize) -> Mesh {
     let n = n.max(1);
-    let sides = Sides::new(q);
+    let sides = UniqueSides::of(&q.faces);
     let mut positions: Vec<DVec3> = nets.corner.clone();
     let side_base = positions.len();
     positions.extend(side_samples(&sides, nets, n));
@@ -31,32 +31,8 @@ pub fn tessellate(q: &FineQuads, nets: &Nets, n: usize) -> Mesh {
     mesh_of(positions, triangles)
 }
 
-/// Every patch side once, in a fixed order (first appearance), by its ends (lower first).
-struct Sides {
-    index: HashMap<(u32, u32), usize>,
-    ends: Vec<(u32, u32)>,
-}
-
-impl Sides {
-    fn new(q: &FineQuads) -> Sides {
-        let mut index: HashMap<(u32, u32), usize> = HashMap::with_capacity(2 * q.faces.len());
-        let mut ends: Vec<(u32, u32)> = Vec::new();
-        for face in &q.faces {
-            for k in 0..4 {
-                let (a, b) = (face[k], face[(k + 1) % 4]);
-                let key = (a.min(b), a.max(b));
-                index.entry(key).or_insert_with(|| {
-                    ends.push(key);
-                    ends.len() - 1
-                });
-            }
-        }
-        Sides { index, ends }
-    }
-}
-
 /// The n−1 inner samples of every side, as the side's own quadratic curve.
-fn side_samples(sides: &Sides, nets: &Nets, n: usize) -> Vec<DVec3> {
+fn side_samples(sides: &UniqueSides, nets: &Nets, n: usize) -> Vec<DVec3> {
     sides
         .ends
         .par_iter()
@@ -91,7 +67,7 @@ fn face_samples(q: &FineQuads, nets: &Nets, n: usize) -> Vec<DVec3> {
 struct Grid<'a> {
     q: &'a FineQuads,
     n: usize,
-    sides: &'a Sides,
+    sides: &'a UniqueSides,
     side_base: usize,
     face_base: usize,
 }
@@ -102,8 +78,8 @@ impl Grid<'_> {
         let (n, inner) = (self.n, self.n - 1);
         let c = self.q.faces[f];
         let on_side = |a: u32, b: u32, k: usize| -> u32 {
-            let (key, k) = if a < b { ((a, b), k) } else { ((b, a), n - k) };
-            (self.side_base + self.sides.index[&key] * inner + (k - 1)) as u32
+            let k = if a < b { k } else { n - k };
+            (self.side_base + self.sides.of_ends(a, b) * inner + (k - 1)) as u32
         };
         match (i, j) {
             (0, 0) => c[0],
