@@ -6,18 +6,21 @@
 //! 2. [`layout`]: the triangular regions as the dual of the cell adjacency, checked to be a
 //!    closed manifold triangulation of the input's Euler characteristic; where it is not,
 //!    seeds are added in the offending cells and the cells regrown (bounded retries).
-//! 3. [`quads`]: each region split into three quads, each refined 4×4, Doo–Sabin points
-//!    sampled on the input surface (thesis §4.4–§4.5).
-//! 4. [`bezier`]: 16 biquadratic Bézier patches per quad (thesis §4.5, b₂₀ erratum fixed).
-//! 5. [`tessellate`]: n×n samples per patch, shared along patch sides (thesis §4.7).
+//! 3. [`charts`]: the surface cut along the cell borders and each cell mapped onto a regular
+//!    polygon by a harmonic map that cannot fold (thesis §4.2 c, §4.3); a cell that is not a
+//!    disc fails the layout like an invalid dual.
+//! 4. [`quads`]: each region split into three quads, each refined 4×4, Doo–Sabin points
+//!    sampled through the charts (thesis §4.4–§4.5).
+//! 5. [`bezier`]: 16 biquadratic Bézier patches per quad (thesis §4.5, b₂₀ erratum fixed).
+//! 6. [`tessellate`]: n×n samples per patch, shared along patch sides (thesis §4.7).
 
 pub mod bezier;
 pub mod cells;
+pub mod charts;
 pub mod layout;
 pub mod quads;
 pub mod tessellate;
 
-use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
 use cells::Graph;
@@ -77,9 +80,12 @@ pub struct PatchesReport {
     pub retries: usize,
     pub regions: usize,
     pub patches: usize,
-    /// Output triangles facing against the input (see [`facing_against`]); 0 on smooth
-    /// closed shapes, a few per cent at thin parts for the spacing.
+    /// Output triangles facing against the input (see [`facing_against`]): 0 on smooth
+    /// shapes; a few where a crease is narrower than a patch and the patch bridges it.
     pub facing_against_input: usize,
+    /// Parameter triangles turned over in the cells' harmonic charts: 0 by construction
+    /// (positive weights on a convex polygon); counted as a check.
+    pub folded_chart_triangles: usize,
     pub texcoords_dropped: bool,
 }
 
@@ -125,7 +131,7 @@ pub fn remesh(
     let resolution = resolution.max(1);
     let (fraction, seeds) = choose_seeds(&input.graph, mesh, f, target_faces, resolution);
     let initial = seeds.len();
-    let (layout, seeds, retries) = valid_layout(&input, seeds)?;
+    let (layout, charts, seeds, retries) = valid_layout(&input, seeds)?;
     let expected = layout.regions.len() as f64 * faces_per_region(resolution);
     if expected > super::MAX_OUTPUT_FACES {
         return Err(PatchesError::TooDense {
@@ -134,16 +140,14 @@ pub fn remesh(
             limit: super::MAX_OUTPUT_FACES,
         });
     }
-    let centres: Vec<_> = seeds.iter().map(|&s| mesh.positions[s as usize]).collect();
-    let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
-    let fine = quads::build(&layout, &centres, &bvh);
+    let fine = quads::build(&layout, &charts);
     let nets = bezier::nets(&fine).map_err(PatchesError::Internal)?;
     let out = tessellate::tessellate(&fine, &nets, resolution);
     let facing_against_input = facing_against(mesh, &out);
     if facing_against_input > 0 {
         tracing::warn!(
             triangles = facing_against_input,
-            "remesh patches: output triangles face against the input (thin parts at this f; a smaller f helps)"
+            "remesh patches: output triangles face against the input (creases or thin parts narrower than a patch; a smaller f helps)"
         );
     }
     let report = PatchesReport {
@@ -155,6 +159,7 @@ pub fn remesh(
         regions: layout.regions.len(),
         patches: fine.faces.len(),
         facing_against_input,
+        folded_chart_triangles: charts.folded,
         texcoords_dropped: mesh.has_texcoords(),
     };
     Ok((out, report))
@@ -164,6 +169,8 @@ pub fn remesh(
 /// vertex graph and the Euler characteristic the layout must have.
 struct Input<'a> {
     triangles: Vec<[u32; 3]>,
+    /// Each of `triangles`' index in the mesh.
+    ids: Vec<u32>,
     graph: Graph<'a>,
     euler: i64,
 }
@@ -189,10 +196,10 @@ fn checked_input(mesh: &Mesh) -> Result<Input<'_>, PatchesError> {
     if flipped > 0 {
         return Err(PatchesError::Inconsistent(flipped));
     }
-    let triangles: Vec<[u32; 3]> = (0..topo.triangle_count() as u32)
-        .map(|t| topo.triangle_vertices(t))
-        .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
-        .collect();
+    let (ids, triangles): (Vec<u32>, Vec<[u32; 3]>) = (0..topo.triangle_count() as u32)
+        .map(|t| (t, topo.triangle_vertices(t)))
+        .filter(|(_, t)| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+        .unzip();
     let n = mesh.positions.len();
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); n];
     let mut used = vec![false; n];
@@ -214,6 +221,7 @@ fn checked_input(mesh: &Mesh) -> Result<Input<'_>, PatchesError> {
     };
     Ok(Input {
         triangles,
+        ids,
         graph,
         euler,
     })
@@ -253,18 +261,31 @@ fn choose_seeds(
     best
 }
 
-/// Grows the cells and builds their dual until it is a valid closed triangulation: each
-/// retry adds a seed in every offending cell, at the cell's vertex farthest from its seed
-/// (the thesis leaves the rule unstated). The layout, the final seeds and the retries.
+/// Grows the cells, builds their dual and the cells' charts until the dual is a valid
+/// closed triangulation and every cell a disc: each retry adds a seed in every offending
+/// cell, at the cell's vertex farthest from its seed (reading P2). The layout, the charts,
+/// the final seeds and the retries.
 fn valid_layout(
     input: &Input<'_>,
     mut seeds: Vec<u32>,
-) -> Result<(layout::Layout, Vec<u32>, usize), PatchesError> {
+) -> Result<(layout::Layout, charts::Charts, Vec<u32>, usize), PatchesError> {
     let mut retries = 0;
     loop {
         let grown = cells::grow(&input.graph, seeds);
         let bad = match layout::dual(&grown, &input.triangles, input.euler) {
-            Ok(l) => return Ok((l, grown.seeds, retries)),
+            Ok(l) => match charts::build(
+                input.graph.positions,
+                &input.triangles,
+                &input.ids,
+                &grown.label,
+                &l,
+            ) {
+                Ok(c) => return Ok((l, c, grown.seeds, retries)),
+                Err(bad_cells) => layout::Invalid {
+                    bad_cells,
+                    reason: "a cell is not a disc".to_string(),
+                },
+            },
             Err(bad) => bad,
         };
         if retries == MAX_RETRIES {
@@ -290,9 +311,9 @@ fn valid_layout(
     }
 }
 
-/// Output triangles whose normal points against the input's at the input triangle they
-/// were projected onto (`triangle_origins`; the input's area-weighted vertex normals
-/// summed over that triangle): where a region folded in projection, at thin parts.
+/// Output triangles whose normal points against the input's at the input triangle their
+/// patch's Doo–Sabin point lies on (`triangle_origins`; the input's area-weighted vertex
+/// normals summed over that triangle): where a patch turned over, at thin parts.
 pub fn facing_against(input: &Mesh, out: &Mesh) -> usize {
     let normals = crate::metrics::distance::vertex_normals(input);
     (0..out.triangles.len())

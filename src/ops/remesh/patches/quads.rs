@@ -6,14 +6,12 @@
 //! quad's corners are a cell centre, two border midpoints and the region centre.
 //!
 //! Each quad is refined 4×4; the Doo–Sabin point of sub-quad (i, j) is the quad's
-//! parametrisation at ((2i+1)/8, (2j+1)/8) (thesis §4.5, reading P5). The parametrisation
-//! built here is the bilinear map of the quad's corners (projected onto the input) followed
-//! by a closest-point projection onto the input surface; the thesis' harmonic map of the
-//! traced region is NOT built (see docs/remeshing.md).
+//! parametrisation at ((2i+1)/8, (2j+1)/8) (thesis §4.5, reading P5), taken in the harmonic
+//! chart of the quad's cell ([`super::charts`], reading P9).
 
 use super::UniqueSides;
+use super::charts::Charts;
 use super::layout::Layout;
-use crate::geom::bvh::TriangleBvh;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -23,7 +21,7 @@ pub const SUB: usize = 4;
 
 /// The refined quad mesh: `faces` are counter-clockwise vertex quads (vertex ids are
 /// combinatorial only), `points` the Doo–Sabin point of each face, `origin` the input
-/// triangle each point was projected onto.
+/// triangle each point lies on.
 pub struct FineQuads {
     pub vertex_count: usize,
     pub faces: Vec<[u32; 4]>,
@@ -31,91 +29,42 @@ pub struct FineQuads {
     pub origin: Vec<u32>,
 }
 
-fn project(bvh: &TriangleBvh<'_>, p: DVec3) -> (DVec3, u32) {
-    match bvh.closest(p, None) {
-        Some(hit) => (hit.point, hit.triangle),
-        None => (p, 0),
-    }
-}
-
-fn bilinear(q: &[DVec3; 4], u: f64, v: f64) -> DVec3 {
-    q[0] * ((1.0 - u) * (1.0 - v))
-        + q[1] * (u * (1.0 - v))
-        + q[2] * (u * v)
-        + q[3] * ((1.0 - u) * v)
-}
-
 /// Builds the coarse quads of `layout` (three per region), refines them 4×4 with shared
-/// vertices along shared sides, and samples the Doo–Sabin points.
-pub fn build(layout: &Layout, centres: &[DVec3], bvh: &TriangleBvh<'_>) -> FineQuads {
-    let coarse = Coarse::new(layout, centres, bvh);
-    let quads = coarse.quads(layout);
-    let (faces, samples, vertex_count) = refine(&quads, coarse.points.len() as u32);
-    let projected: Vec<(DVec3, u32)> = samples
+/// vertices along shared sides, and samples the Doo–Sabin points in the cells' charts.
+pub fn build(layout: &Layout, charts: &Charts) -> FineQuads {
+    let quads = coarse_quads(layout);
+    let coarse_count =
+        layout.cells + UniqueSides::of(&layout.regions).ends.len() + layout.regions.len();
+    let (faces, samples, vertex_count) = refine(&quads, coarse_count as u32);
+    let lifted: Vec<_> = samples
         .par_iter()
-        .map(|&(qi, u, v)| {
-            let q = quads[qi].map(|c| coarse.points[c as usize]);
-            project(bvh, bilinear(&q, u, v))
-        })
+        .map(|&(qi, u, v)| charts.quad_point(layout, qi / 3, qi % 3, u, v))
         .collect();
     FineQuads {
         vertex_count,
         faces,
-        points: projected.iter().map(|p| p.0).collect(),
-        origin: projected.iter().map(|p| p.1).collect(),
+        points: lifted.iter().map(|p| p.point).collect(),
+        origin: lifted.iter().map(|p| p.triangle).collect(),
     }
 }
 
-/// The coarse vertices: the cell centres, then one per region border (dual edge), then one
-/// per region centre, all on the input surface.
-struct Coarse {
-    points: Vec<DVec3>,
-    /// The region borders; border i is coarse vertex `cells + i`.
-    borders: UniqueSides,
-    cells: usize,
-}
-
-impl Coarse {
-    fn new(layout: &Layout, centres: &[DVec3], bvh: &TriangleBvh<'_>) -> Coarse {
-        let nc = layout.cells;
-        let borders = UniqueSides::of(&layout.regions);
-        let mut flat: Vec<DVec3> = centres.to_vec();
-        flat.extend(
-            borders
-                .ends
-                .iter()
-                .map(|&(a, b)| (centres[a as usize] + centres[b as usize]) * 0.5),
-        );
-        flat.extend(layout.regions.iter().map(|r| {
-            (centres[r[0] as usize] + centres[r[1] as usize] + centres[r[2] as usize]) / 3.0
-        }));
-        // Onto the surface (cell centres are on it already).
-        let points = flat
-            .par_iter()
-            .enumerate()
-            .map(|(i, &p)| if i < nc { p } else { project(bvh, p).0 })
-            .collect();
-        Coarse {
-            points,
-            borders,
-            cells: nc,
-        }
+/// Three quads per region `[a, b, c]`, one at each cell: the cell centre, the middle of the
+/// border with the next cell, the region centre, the middle of the border with the previous
+/// one (counter-clockwise). The ids are combinatorial: the cells, then one per region
+/// border, then one per region centre.
+fn coarse_quads(layout: &Layout) -> Vec<[u32; 4]> {
+    let borders = UniqueSides::of(&layout.regions);
+    let e = |a: u32, b: u32| (layout.cells + borders.of_ends(a, b)) as u32;
+    let first_centre = layout.cells + borders.ends.len();
+    let mut quads: Vec<[u32; 4]> = Vec::with_capacity(3 * layout.regions.len());
+    for (ri, r) in layout.regions.iter().enumerate() {
+        let g = (first_centre + ri) as u32;
+        let [a, b, c] = *r;
+        quads.push([a, e(a, b), g, e(c, a)]);
+        quads.push([b, e(b, c), g, e(a, b)]);
+        quads.push([c, e(c, a), g, e(b, c)]);
     }
-
-    /// Three quads per region: corner, border midpoint, region centre, border midpoint.
-    fn quads(&self, layout: &Layout) -> Vec<[u32; 4]> {
-        let e = |a: u32, b: u32| (self.cells + self.borders.of_ends(a, b)) as u32;
-        let first_centre = self.cells + self.borders.ends.len();
-        let mut quads: Vec<[u32; 4]> = Vec::with_capacity(3 * layout.regions.len());
-        for (ri, r) in layout.regions.iter().enumerate() {
-            let g = (first_centre + ri) as u32;
-            let [a, b, c] = *r;
-            quads.push([a, e(a, b), g, e(c, a)]);
-            quads.push([b, e(b, c), g, e(a, b)]);
-            quads.push([c, e(c, a), g, e(b, c)]);
-        }
-        quads
-    }
+    quads
 }
 
 /// A sub-quad's Doo–Sabin sample: (coarse quad, u, v).
