@@ -174,7 +174,8 @@ impl Sizing {
 
 /// The size for the largest absolute principal curvature `kappa`: the edge whose
 /// equilateral triangles stay within `tolerance` of a sphere of radius 1/κ
-/// (L = sqrt(6ε/κ − 3ε²); for ε ≥ r the longest edge), clamped.
+/// (L = sqrt(6ε/κ − 3ε²); for ε ≥ r, a radius below the tolerance, the shortest edge; no
+/// curvature, the longest), clamped.
 pub fn size_for(kappa: f64, a: &Adaptive) -> f64 {
     let e = a.tolerance;
     let h = if kappa.is_finite() && kappa > 0.0 {
