@@ -2,6 +2,8 @@
 //! setting MeshLab was measured at in issue #24: 2.9 s facefuns, 0.9 s james, 2.6 s bunny,
 //! 10.9 s igea on this machine) on those four scans, and `patches` with its defaults on igea
 //! (269k triangles) and Lucy (100k; the issue's aim is under 5 s for 100k triangles).
+//! `isotropic adaptive` is the same with `adaptive = true` (1 % of the diagonal the longest
+//! edge, the default tolerance and shortest edge), on the same scans.
 //! A scan that is missing fails the bench: the figures must not quietly shrink.
 
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -30,6 +32,10 @@ fn bench(c: &mut Criterion) {
         iterations: 3,
         ..Default::default()
     };
+    let adaptive = RemeshParams {
+        adaptive: true,
+        ..isotropic.clone()
+    };
     let patches = RemeshParams {
         method: Method::Patches,
         ..Default::default()
@@ -54,6 +60,26 @@ fn bench(c: &mut Criterion) {
             "isotropic igea",
             "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
             &isotropic,
+        ),
+        (
+            "isotropic adaptive facefuns",
+            "textured/facefuns_di3d_face/example.obj",
+            &adaptive,
+        ),
+        (
+            "isotropic adaptive james",
+            "textured/james_face_stereo_capture/james.obj",
+            &adaptive,
+        ),
+        (
+            "isotropic adaptive bunny",
+            "untextured/stanford_bunny/bun_zipper.ply",
+            &adaptive,
+        ),
+        (
+            "isotropic adaptive igea",
+            "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
+            &adaptive,
         ),
         (
             "patches igea",

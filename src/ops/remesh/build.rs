@@ -73,7 +73,7 @@ fn classify_vertices(c: &mut Corners, topo: &Topology, lines: &Lines) {
         c.kind[v as usize] = match lines.degree[v as usize] {
             _ if c.locked[v as usize] => VKind::Corner,
             0 => VKind::Free,
-            2 => VKind::Line,
+            2 if !lines.corner[v as usize] => VKind::Line,
             _ => VKind::Corner,
         };
     }

@@ -12,7 +12,9 @@
 use super::corners::{Corners, NIL, VKind, prev};
 use super::lines::Lines;
 use super::ops::{self, Scratch};
+use super::sizing::Sizing;
 use crate::geom::bvh::TriangleBvh;
+use crate::mesh::Mesh;
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -39,9 +41,9 @@ fn canonical(c: &Corners, h: u32) -> bool {
     }
 }
 
-/// Splits every edge of the pass's start longer than `hi` at its middle, halving it
-/// until it is not (new edges wait for the next iteration: this bounds the pass).
-pub fn split_long(c: &mut Corners, lines: &Lines, hi: f64) -> usize {
+/// Splits every edge of the pass's start longer than its `sizing.hi` at its middle, halving
+/// it until it is not (new edges wait for the next iteration: this bounds the pass).
+pub fn split_long(c: &mut Corners, lines: &Lines, sizing: &mut Sizing) -> usize {
     let mut n = 0;
     let edges = c.vtx.len() as u32;
     for h in 0..edges {
@@ -51,7 +53,7 @@ pub fn split_long(c: &mut Corners, lines: &Lines, hi: f64) -> usize {
             }
             let (a, b) = (c.vtx[h as usize], c.dest(h));
             let (pa, pb) = (c.pos[a as usize], c.pos[b as usize]);
-            if pa.distance(pb).partial_cmp(&hi) != Some(std::cmp::Ordering::Greater)
+            if pa.distance(pb).partial_cmp(&sizing.hi(a, b)) != Some(std::cmp::Ordering::Greater)
                 || c.locked[a as usize]
                 || c.locked[b as usize]
             {
@@ -64,7 +66,8 @@ pub fn split_long(c: &mut Corners, lines: &Lines, hi: f64) -> usize {
             } else {
                 NIL
             };
-            ops::split(c, h, mid, seg);
+            let m = ops::split(c, h, mid, seg);
+            sizing.split(a, b, m);
             n += 1;
         }
     }
@@ -83,7 +86,7 @@ fn order(c: &Corners, a: u32, b: u32) -> [(u32, u32); 2] {
     }
 }
 
-pub fn collapse_short(c: &mut Corners, lo: f64, hi: f64, sc: &mut Scratch) -> usize {
+pub fn collapse_short(c: &mut Corners, sizing: &Sizing, sc: &mut Scratch) -> usize {
     let mut total = 0;
     for _ in 0..COLLAPSE_SWEEPS {
         let mut n = 0;
@@ -92,11 +95,11 @@ pub fn collapse_short(c: &mut Corners, lo: f64, hi: f64, sc: &mut Scratch) -> us
                 continue;
             }
             let (a, b) = (c.vtx[h as usize], c.dest(h));
-            if c.pos[a as usize].distance(c.pos[b as usize]) >= lo {
+            if c.pos[a as usize].distance(c.pos[b as usize]) >= sizing.lo(a, b) {
                 continue;
             }
             for (x, y) in order(c, a, b) {
-                if ops::can_collapse(c, h, x, y, hi, sc) {
+                if ops::can_collapse(c, h, x, y, sizing, sc) {
                     ops::collapse(c, h, x, y, sc);
                     n += 1;
                     break;
@@ -199,16 +202,18 @@ pub fn flip_angles(c: &mut Corners, sc: &mut Scratch) -> usize {
 
 /// Tangential relaxation: a free vertex moves towards the area-weighted centroid of its
 /// faces within its tangent plane, a line vertex towards the middle of its two line
-/// neighbours along their chord. A move that would turn a face over is not made.
-pub fn relax(c: &mut Corners) {
+/// neighbours along their chord. A move that would turn a face over is not made. With an
+/// adaptive size, a face's weight is its area over its squared size (pmp-library's
+/// weighting), so vertices do not drift towards the large triangles of the coarse parts.
+pub fn relax(c: &mut Corners, sizing: &Sizing) {
     let new: Vec<DVec3> = (0..c.pos.len() as u32)
         .into_par_iter()
-        .map_init(Scratch::default, |sc, v| relaxed(c, v, sc))
+        .map_init(Scratch::default, |sc, v| relaxed(c, sizing, v, sc))
         .collect();
     c.pos = new;
 }
 
-fn relaxed(c: &Corners, v: u32, sc: &mut Scratch) -> DVec3 {
+fn relaxed(c: &Corners, sizing: &Sizing, v: u32, sc: &mut Scratch) -> DVec3 {
     let p = c.pos[v as usize];
     if c.vertex_dead[v as usize] || c.locked[v as usize] {
         return p;
@@ -224,7 +229,10 @@ fn relaxed(c: &Corners, v: u32, sc: &mut Scratch) -> DVec3 {
             None => return p,
         },
         VKind::Free => {
-            let (centroid, normal) = ops::fan_centroid(c, v, sc);
+            let (centroid, normal) = match sizing {
+                Sizing::Uniform { .. } => ops::fan_centroid(c, v, sc),
+                Sizing::Adaptive { size, .. } => ops::fan_centroid_sized(c, v, size, sc),
+            };
             let d = centroid - p;
             p + d - normal * normal.dot(d)
         }
@@ -284,17 +292,25 @@ fn projected(
     }
 }
 
-/// Runs `iterations` rounds towards edge length `l`.
-pub fn run(c: &mut Corners, lines: &Lines, bvh: &TriangleBvh, l: f64, iterations: usize) -> Counts {
-    let (lo, hi) = (0.8 * l, 4.0 / 3.0 * l);
+/// Runs `iterations` rounds towards the edge lengths of `sizing` (on `input`, the mesh
+/// `bvh` and `lines` were built from).
+pub fn run(
+    c: &mut Corners,
+    lines: &Lines,
+    bvh: &TriangleBvh,
+    input: &Mesh,
+    sizing: &mut Sizing,
+    iterations: usize,
+) -> Counts {
     let mut sc = Scratch::default();
     let mut counts = Counts::default();
     for _ in 0..iterations {
-        counts.splits += split_long(c, lines, hi);
-        counts.collapses += collapse_short(c, lo, hi, &mut sc);
+        counts.splits += split_long(c, lines, sizing);
+        counts.collapses += collapse_short(c, sizing, &mut sc);
         counts.valence_flips += equalize_valences(c, &mut sc);
-        relax(c);
+        relax(c, sizing);
         project(c, lines, bvh);
+        sizing.follow(c, lines, input);
         counts.angle_flips += flip_angles(c, &mut sc);
     }
     counts

@@ -36,6 +36,9 @@ pub struct Lines {
     pub of_edge: Vec<u32>,
     /// Per input vertex: constrained edges met there.
     pub degree: Vec<u32>,
+    /// Per input vertex: a corner although exactly two segments meet there (see
+    /// [`Lines::mark_corners`]).
+    pub corner: Vec<bool>,
 }
 
 /// Walking more than this many segments from the hint is not tried: a vertex moves by
@@ -89,18 +92,65 @@ impl Lines {
             l.degree[x as usize] += 1;
             l.degree[y as usize] += 1;
         }
+        l.corner = vec![false; mesh.positions.len()];
+        if let Some(cos) = cos_feature {
+            l.mark_corners(cos);
+        }
         l.link_neighbours(topo);
         l
     }
 
+    /// With `feature_angle` (its cosine `cos_feature`), a vertex where exactly two segments
+    /// meet is nevertheless a corner when the line turns there by more than the angle (a
+    /// square's corner, a border's sharp turn), or when a feature line meets a line of
+    /// another kind: it stays fixed like a line's end, so that the corner is not cut
+    /// (pmp-library locks such vertices too; Botsch & Kobbelt 2004 keep feature vertices
+    /// where feature lines do not continue smoothly). Without `feature_angle` no vertex is
+    /// made a corner here: the borders of scans are jagged and every step would be one.
+    fn mark_corners(&mut self, cos_feature: f64) {
+        let mut first = vec![NIL; self.corner.len()];
+        for s in 0..self.ends.len() as u32 {
+            for end in 0..2 {
+                let v = self.verts[s as usize][end] as usize;
+                if self.degree[v] != 2 {
+                    continue;
+                }
+                if first[v] == NIL {
+                    first[v] = s;
+                    continue;
+                }
+                let t = first[v];
+                let (p, a, b) = (
+                    self.end_at(s, v as u32, 0),
+                    self.end_at(t, v as u32, 1),
+                    self.end_at(s, v as u32, 1),
+                );
+                // The directions into and out of v along the line; their angle is the turn.
+                let (din, dout) = ((p - a).normalize_or_zero(), (b - p).normalize_or_zero());
+                let kinds = [self.kind[s as usize], self.kind[t as usize]];
+                let mixed_feature = kinds[0] != kinds[1] && kinds.contains(&LineKind::Feature);
+                if din.dot(dout) < cos_feature || mixed_feature {
+                    self.corner[v] = true;
+                }
+            }
+        }
+    }
+
+    /// Segment `s`'s end at input vertex `v` (`which` 0) or its other end (`which` 1).
+    fn end_at(&self, s: u32, v: u32, which: usize) -> DVec3 {
+        let k = usize::from(self.verts[s as usize][0] != v);
+        self.ends[s as usize][if which == 0 { k } else { 1 - k }]
+    }
+
     /// A vertex of a line where exactly two segments meet continues it; any other is a
-    /// corner (an end, a junction) and never moves.
+    /// corner (an end, a junction, a sharp turn) and never moves, and projection does not
+    /// walk across it.
     fn link_neighbours(&mut self, topo: &Topology) {
         self.nb = vec![[NIL; 2]; self.ends.len()];
         for s in 0..self.ends.len() {
             for end in 0..2 {
                 let v = self.verts[s][end];
-                if self.degree[v as usize] != 2 {
+                if self.degree[v as usize] != 2 || self.corner[v as usize] {
                     continue;
                 }
                 let other = topo

@@ -15,6 +15,7 @@ pub mod lines;
 pub mod ops;
 pub mod patches;
 pub mod quality;
+pub mod sizing;
 #[cfg(test)]
 mod tests;
 
@@ -24,6 +25,7 @@ use crate::mesh::topology::Topology;
 use lines::{LineKind, Lines};
 use quality::AngleQuality;
 use serde::{Deserialize, Serialize};
+use sizing::{Adaptive, Sizing, SizingReport};
 use std::time::Instant;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -37,7 +39,8 @@ pub enum Method {
 }
 
 /// Parameters of the `remesh` step. Exactly one of `edge_length`, `edge_fraction` and
-/// `target_faces` sets the target edge length L.
+/// `target_faces` sets the target edge length L; with `adaptive`, L is the longest edge
+/// (where the surface is flat) and the curvature shortens it elsewhere.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RemeshParams {
@@ -60,6 +63,23 @@ pub struct RemeshParams {
     /// `patches` only: the n of the n×n tessellation of every Bézier patch (thesis §4.7).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub patch_resolution: Option<usize>,
+    /// `isotropic` only: a curvature-adaptive size (Dunyach et al. 2013, [`sizing`]). The
+    /// adaptive keys are left out of the resolved recipe when absent, so that recipes
+    /// written before them keep their hash.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub adaptive: bool,
+    /// The approximation tolerance ε of the adaptive size, in the mesh's units ...
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f64>,
+    /// ... or as a fraction of the bounding-box diagonal (default: L/100).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tolerance_fraction: Option<f64>,
+    /// The shortest edge of the adaptive size, in the mesh's units ...
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_edge_length: Option<f64>,
+    /// ... or as a fraction of the bounding-box diagonal (default: L/5).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_edge_fraction: Option<f64>,
 }
 
 impl Default for RemeshParams {
@@ -73,6 +93,11 @@ impl Default for RemeshParams {
             feature_angle: None,
             f: None,
             patch_resolution: None,
+            adaptive: false,
+            tolerance: None,
+            tolerance_fraction: None,
+            min_edge_length: None,
+            min_edge_fraction: None,
         }
     }
 }
@@ -87,6 +112,12 @@ pub const MIN_EDGE_FRACTION: f64 = 1e-4;
 /// allows ~10⁸ triangles on a flat scan, so the expected count is checked before any work:
 /// a recipe asking for more fails with the figure instead of running the job out of memory.
 pub const MAX_OUTPUT_FACES: f64 = 10_000_000.0;
+/// Adaptive defaults, as fractions of the longest edge L: the tolerance ε = L/100 shortens
+/// edges where the curvature radius is below about 17·L (L(r) < L for r < L²/(6ε)); the
+/// shortest edge L/5 is reached at radii below about 0.7·L, which bounds how many
+/// triangles noise or a sharp crease can ask for (at most 25 times the uniform density).
+pub const DEFAULT_TOLERANCE_RATIO: f64 = 0.01;
+pub const DEFAULT_MIN_EDGE_RATIO: f64 = 0.2;
 
 /// Triangles of equilateral side `l` that cover `area` (the relation `target_faces` uses).
 fn faces_for(area: f64, l: f64) -> f64 {
@@ -135,7 +166,111 @@ impl RemeshParams {
         {
             return Err(format!("feature_angle must be in 0..=180 degrees, not {a}"));
         }
+        self.validate_adaptive()
+    }
+
+    fn has_adaptive_keys(&self) -> bool {
+        self.tolerance.is_some()
+            || self.tolerance_fraction.is_some()
+            || self.min_edge_length.is_some()
+            || self.min_edge_fraction.is_some()
+    }
+
+    fn validate_adaptive(&self) -> Result<(), String> {
+        if !self.adaptive {
+            if self.has_adaptive_keys() {
+                return Err("tolerance, tolerance_fraction, min_edge_length and min_edge_fraction belong to adaptive = true".into());
+            }
+            return Ok(());
+        }
+        if self.target_faces.is_some() {
+            return Err("adaptive = true takes edge_length or edge_fraction (the longest edge, used where the surface is flat), not target_faces: the face count follows the curvature".into());
+        }
+        if self.tolerance.is_some() && self.tolerance_fraction.is_some() {
+            return Err("give tolerance or tolerance_fraction, not both".into());
+        }
+        if self.min_edge_length.is_some() && self.min_edge_fraction.is_some() {
+            return Err("give min_edge_length or min_edge_fraction, not both".into());
+        }
+        if let Some(t) = self.tolerance
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(format!("tolerance must be a positive number, not {t}"));
+        }
+        if let Some(t) = self.tolerance_fraction
+            && !(t.is_finite() && t > 0.0 && t <= 1.0)
+        {
+            return Err(format!(
+                "tolerance_fraction must be in (0, 1] (of the bounding-box diagonal), not {t}"
+            ));
+        }
+        if let Some(m) = self.min_edge_length
+            && !(m.is_finite() && m > 0.0)
+        {
+            return Err(format!(
+                "min_edge_length must be a positive number, not {m}"
+            ));
+        }
+        if let Some(m) = self.min_edge_fraction
+            && !(m.is_finite() && (MIN_EDGE_FRACTION..=1.0).contains(&m))
+        {
+            return Err(format!(
+                "min_edge_fraction must be in {MIN_EDGE_FRACTION}..=1 (of the bounding-box diagonal), not {m}"
+            ));
+        }
+        // In the same units the bound is checked here; mixed, when the scan is known.
+        let pairs = [
+            (
+                self.min_edge_length,
+                self.edge_length,
+                "min_edge_length",
+                "edge_length",
+            ),
+            (
+                self.min_edge_fraction,
+                self.edge_fraction,
+                "min_edge_fraction",
+                "edge_fraction",
+            ),
+        ];
+        for (min, max, a, b) in pairs {
+            if let (Some(min), Some(max)) = (min, max)
+                && min > max
+            {
+                return Err(format!(
+                    "{a} ({min}) must not exceed {b} ({max}), the longest edge of adaptive = true"
+                ));
+            }
+        }
         Ok(())
+    }
+
+    /// The adaptive size's settings for `mesh` in its units (`None` when not adaptive).
+    pub fn adaptive_for(&self, mesh: &Mesh) -> Option<Result<Adaptive, RemeshError>> {
+        if !self.adaptive {
+            return None;
+        }
+        let diag = mesh.bounding_box_diagonal();
+        let max_edge = self.target_length(mesh);
+        let tolerance = match (self.tolerance, self.tolerance_fraction) {
+            (Some(t), _) => t,
+            (_, Some(f)) => f * diag,
+            _ => DEFAULT_TOLERANCE_RATIO * max_edge,
+        };
+        let min_edge = match (self.min_edge_length, self.min_edge_fraction) {
+            (Some(m), _) => m,
+            (_, Some(f)) => f * diag,
+            _ => DEFAULT_MIN_EDGE_RATIO * max_edge,
+        }
+        .max(MIN_EDGE_FRACTION * diag);
+        if min_edge > max_edge {
+            return Some(Err(RemeshError::MinEdgeAboveMax { min_edge, max_edge }));
+        }
+        Some(Ok(Adaptive {
+            tolerance,
+            min_edge,
+            max_edge,
+        }))
     }
 
     fn validate_patches(&self) -> Result<(), String> {
@@ -144,6 +279,9 @@ impl RemeshParams {
             || self.feature_angle.is_some()
         {
             return Err("method \"patches\" takes f or target_faces (and patch_resolution), not edge_length, edge_fraction or feature_angle (those are method = \"isotropic\"'s)".into());
+        }
+        if self.adaptive || self.has_adaptive_keys() {
+            return Err("method \"patches\" has no adaptive size: adaptive, tolerance, tolerance_fraction, min_edge_length and min_edge_fraction are method = \"isotropic\"'s".into());
         }
         if self.f.is_some() && self.target_faces.is_some() {
             return Err("give f or target_faces, not both".into());
@@ -208,6 +346,10 @@ pub struct RemeshReport {
     pub quality_before: AngleQuality,
     pub quality_after: AngleQuality,
     pub seconds: f64,
+    /// `adaptive = true` only: the size field (tolerance, shortest and longest edge, how many
+    /// input vertices are clamped); `edge_length` is then the longest edge.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sizing: Option<SizingReport>,
     /// `patches` only: seeds, retries, regions, patches; texture coordinates are dropped.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub patches: Option<patches::PatchesReport>,
@@ -229,6 +371,11 @@ pub enum RemeshError {
         expected: f64,
         limit: f64,
     },
+    #[error(
+        "the shortest edge of adaptive = true ({min_edge:.3e}) is longer than the longest \
+         ({max_edge:.3e}, from edge_length or edge_fraction); lower min_edge_length or min_edge_fraction"
+    )]
+    MinEdgeAboveMax { min_edge: f64, max_edge: f64 },
     #[error("{0}")]
     Patches(#[from] patches::PatchesError),
 }
@@ -252,8 +399,11 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         return remesh_patches(mesh, params, start);
     }
     let l = params.target_length(mesh);
-    let expected = faces_for(surface_area(mesh), l);
-    if expected.is_nan() || expected > MAX_OUTPUT_FACES {
+    let adaptive = params.adaptive_for(mesh).transpose()?;
+    // The adaptive field's minimum bounds its density; the check below uses the field.
+    let shortest = adaptive.map_or(l, |a| a.min_edge);
+    let expected = faces_for(surface_area(mesh), shortest);
+    if expected.is_nan() || (adaptive.is_none() && expected > MAX_OUTPUT_FACES) {
         return Err(RemeshError::TooDense {
             edge_length: l,
             expected,
@@ -261,11 +411,26 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         });
     }
     let topo = Topology::new(mesh);
+    let (mut sizing, sizing_report) = match &adaptive {
+        None => (Sizing::uniform(l), None),
+        Some(a) => {
+            let (sizes, report) = sizing::input_sizes(mesh, &topo, a);
+            let expected = adaptive_faces(mesh, &sizes);
+            if expected.is_nan() || expected > MAX_OUTPUT_FACES {
+                return Err(RemeshError::TooDense {
+                    edge_length: a.min_edge,
+                    expected,
+                    limit: MAX_OUTPUT_FACES,
+                });
+            }
+            (Sizing::adaptive(sizes), Some(report))
+        }
+    };
     let lines = Lines::new(mesh, &topo, params.feature_angle);
     let mut c = build::build(mesh, &topo, &lines);
     let chart_of_input = c.chart.clone();
     let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
-    let counts = isotropic::run(&mut c, &lines, &bvh, l, params.iterations);
+    let counts = isotropic::run(&mut c, &lines, &bvh, mesh, &mut sizing, params.iterations);
     let out = export::export(&c, &lines, mesh, &chart_of_input, &bvh);
     let report = RemeshReport {
         method: params.method,
@@ -283,9 +448,26 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         quality_before: AngleQuality::of(mesh),
         quality_after: AngleQuality::of(&out),
         seconds: start.elapsed().as_secs_f64(),
+        sizing: sizing_report,
         patches: None,
     };
     Ok((out, report))
+}
+
+/// The triangles an adaptive field asks for: each input triangle's area at the mean size
+/// of its corners.
+fn adaptive_faces(mesh: &Mesh, sizes: &[f64]) -> f64 {
+    (0..mesh.triangles.len())
+        .map(|t| {
+            let s = mesh
+                .triangle_vertices(t)
+                .map(|v| sizes[v as usize])
+                .iter()
+                .sum::<f64>()
+                / 3.0;
+            faces_for(mesh.triangle_area(t), s)
+        })
+        .sum()
 }
 
 fn remesh_patches(
@@ -310,6 +492,7 @@ fn remesh_patches(
             quality_before: AngleQuality::of(mesh),
             quality_after,
             seconds: start.elapsed().as_secs_f64(),
+            sizing: None,
             patches: Some(report),
         },
     ))

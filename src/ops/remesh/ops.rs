@@ -3,6 +3,7 @@
 //! condition, `decimate::guards::link_shape`), no zero-area face, lines stay lines.
 
 use super::corners::{Corners, NIL, VKind, next, prev};
+use super::sizing::Sizing;
 use crate::ops::decimate::guards::{
     DEGENERATE_QUALITY, LinkScratch, LinkShape, link_shape, quality,
 };
@@ -81,8 +82,15 @@ fn split_side(c: &mut Corners, h: u32, m: u32) -> u32 {
 }
 
 /// Whether `a` may go into `b` by collapsing the edge of `h` (either half-edge of a–b),
-/// under the length bound `hi` for the edges that `b` then has.
-pub fn can_collapse(c: &Corners, h: u32, a: u32, b: u32, hi: f64, sc: &mut Scratch) -> bool {
+/// under the split bound of `sizing` for the edges that `b` then has.
+pub fn can_collapse(
+    c: &Corners,
+    h: u32,
+    a: u32,
+    b: u32,
+    sizing: &Sizing,
+    sc: &mut Scratch,
+) -> bool {
     if c.locked[a as usize] || c.locked[b as usize] || c.kind[a as usize] == VKind::Corner {
         return false;
     }
@@ -102,7 +110,7 @@ pub fn can_collapse(c: &Corners, h: u32, a: u32, b: u32, hi: f64, sc: &mut Scrat
     if sc
         .ring_a
         .iter()
-        .any(|&x| x != b && c.pos[x as usize].distance(pb) > hi)
+        .any(|&x| x != b && c.pos[x as usize].distance(pb) > sizing.hi(x, b))
     {
         return false;
     }
@@ -323,6 +331,29 @@ pub fn fan_centroid(c: &Corners, v: u32, sc: &mut Scratch) -> (DVec3, DVec3) {
     }
     if area > 0.0 {
         (sum / area, normal.normalize_or_zero())
+    } else {
+        (c.pos[v as usize], DVec3::ZERO)
+    }
+}
+
+/// As [`fan_centroid`], each face weighted by its area over the square of its mean vertex
+/// size (`size`), so that the centroid of a graded fan is not pulled towards its larger
+/// faces (pmp-library's adaptive relaxation weights).
+pub fn fan_centroid_sized(c: &Corners, v: u32, size: &[f64], sc: &mut Scratch) -> (DVec3, DVec3) {
+    c.fan(v, &mut sc.hs);
+    let (mut sum, mut weight, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
+    for &h in &sc.hs {
+        let f = (h / 3) as usize;
+        let n = c.face_cross(f);
+        let [a, b, d] = c.face_positions(f);
+        let s = (0..3).map(|i| size[c.vtx[3 * f + i] as usize]).sum::<f64>() / 3.0;
+        let w = n.length() / (s * s);
+        sum += w * (a + b + d) / 3.0;
+        weight += w;
+        normal += n;
+    }
+    if weight > 0.0 && weight.is_finite() {
+        (sum / weight, normal.normalize_or_zero())
     } else {
         (c.pos[v as usize], DVec3::ZERO)
     }
