@@ -111,7 +111,7 @@ impl<'a> TriangleBvh<'a> {
     /// Indexes the given triangles of `mesh` (the caller leaves out those it does not want,
     /// e.g. zero-area ones). Positions must be finite.
     pub fn new(mesh: &'a Mesh, triangles: Vec<u32>) -> TriangleBvh<'a> {
-        let mut items: Vec<(u32, [f32; 3])> = triangles
+        let mut items: Vec<Item> = triangles
             .par_iter()
             .map(|&t| {
                 let [a, b, c] = mesh.triangle_positions(t as usize);
@@ -122,12 +122,14 @@ impl<'a> TriangleBvh<'a> {
         let sizes = SubtreeSizes::new(items.len());
         let mut nodes = vec![Node::EMPTY; 1 + sizes.descendants(items.len())];
         let (root, descendants) = nodes.split_first_mut().expect("the root is always there");
-        *root = build(mesh, &sizes, &mut items, 0, descendants, 1);
+        *root = split(&sizes, &mut items, 0, descendants, 1);
         let order: Vec<u32> = items.iter().map(|&(t, _)| t).collect();
-        let corners = order
+        drop(items);
+        let corners: Vec<[u32; 3]> = order
             .par_iter()
             .map(|&t| mesh.triangle_vertices(t as usize))
             .collect();
+        fit_boxes(mesh, &mut nodes, &corners);
         let levels = depth(order.len()) + 1;
         TriangleBvh {
             mesh,
@@ -343,55 +345,46 @@ impl SubtreeSizes {
 /// Subtrees at least this large build their halves in parallel.
 const PARALLEL_BUILD: usize = 1 << 14;
 
-/// Builds the subtree over `items` (sorting them into leaf order) and returns its root;
-/// `items` starts at `first_item` of the whole list, and the subtree's descendants go into
-/// `below`, which is the node array from index `offset` on. Layout: a
-/// node's two children sit side by side at the start of its part of the array, followed by
-/// the left child's descendants and then the right child's.
+/// A triangle and its centroid, rounded to `f32`, while the tree is built.
+type Item = (u32, [f32; 3]);
+
+/// Splits the subtree over `items` (sorting them into leaf order) and returns its root, box
+/// not yet set ([`fit_boxes`]); `items` starts at `first_item` of the whole list, and the
+/// subtree's descendants go into `below`, which is the node array from index `offset` on.
+/// Layout: a node's two children sit side by side at the start of its part of the array,
+/// followed by the left child's descendants and then the right child's.
 ///
-/// Boxes are computed bottom up: a leaf's from its triangles' corners (rounded outwards to
-/// `f32`), an inner node's as the union of its children's, which is the same box as
-/// rounding the union of the corners (rounding is monotone).
-fn build(
-    mesh: &Mesh,
+/// The tree does not depend on how the median is selected. Every split is at the median of
+/// a total order (centroid along the axis, then triangle index), so each node's triangles are
+/// the same set whatever the selection algorithm; and the order within a leaf is that of its
+/// parent's selection, which has at most 2 × [`LEAF_SIZE`] + 1 items and so sorts them fully
+/// (the standard library's selection sorts slices this short outright). The tree is that of
+/// sorting every node's triangles fully (tested below).
+fn split(
     sizes: &SubtreeSizes,
-    items: &mut [(u32, [f32; 3])],
+    items: &mut [Item],
     first_item: usize,
     below: &mut [Node],
     offset: usize,
 ) -> Node {
     if items.len() <= LEAF_SIZE {
-        let (min, max) = leaf_bounds(mesh, items);
         return Node {
-            min,
-            max,
             first: first_item as u32,
             count: items.len() as u32,
+            ..Node::EMPTY
         };
     }
     // Split at the median centroid along the axis where the centroids spread most.
-    let axis = widest_centroid_axis(items);
     let mid = items.len() / 2;
-    items.select_nth_unstable_by(mid, |a, b| {
-        a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0))
-    });
+    select_median(items, mid, widest_centroid_axis(items));
     let (left_items, right_items) = items.split_at_mut(mid);
     let (pair, rest) = below.split_at_mut(2);
     let (left_below, right_below) = rest.split_at_mut(sizes.descendants(mid));
     let right_offset = offset + 2 + left_below.len();
     let right_first = first_item + mid;
     let parallel = left_items.len() + right_items.len() >= PARALLEL_BUILD;
-    let mut left = || build(mesh, sizes, left_items, first_item, left_below, offset + 2);
-    let mut right = || {
-        build(
-            mesh,
-            sizes,
-            right_items,
-            right_first,
-            right_below,
-            right_offset,
-        )
-    };
+    let mut left = || split(sizes, left_items, first_item, left_below, offset + 2);
+    let mut right = || split(sizes, right_items, right_first, right_below, right_offset);
     let (left, right) = if parallel {
         rayon::join(left, right)
     } else {
@@ -400,41 +393,86 @@ fn build(
     pair[0] = left;
     pair[1] = right;
     Node {
-        min: [0, 1, 2].map(|k| left.min[k].min(right.min[k])),
-        max: [0, 1, 2].map(|k| left.max[k].max(right.max[k])),
         first: offset as u32,
         count: 0,
+        ..Node::EMPTY
     }
 }
 
-fn leaf_bounds(mesh: &Mesh, items: &[(u32, [f32; 3])]) -> ([f32; 3], [f32; 3]) {
-    let mut min = DVec3::INFINITY;
-    let mut max = DVec3::NEG_INFINITY;
-    for &(t, _) in items {
-        for p in mesh.triangle_positions(t as usize) {
-            min = min.min(p);
-            max = max.max(p);
+/// An `f32`'s bits, mapped so that their unsigned order is [`f32::total_cmp`]'s.
+#[inline(always)]
+fn ordered_bits(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 { !b } else { b | 0x8000_0000 }
+}
+
+/// The build's sort key along axis `A`: centroid, then triangle index, as one integer (one
+/// comparison instead of a float comparison and a tie-break: the selections are most of the
+/// build's time).
+#[inline(always)]
+fn split_key<const A: usize>(item: &Item) -> u64 {
+    (u64::from(ordered_bits(item.1[A])) << 32) | u64::from(item.0)
+}
+
+/// Puts the `mid` smallest items by [`split_key`] along `axis` first.
+fn select_median(items: &mut [Item], mid: usize, axis: usize) {
+    match axis {
+        0 => items.select_nth_unstable_by_key(mid, split_key::<0>),
+        1 => items.select_nth_unstable_by_key(mid, split_key::<1>),
+        _ => items.select_nth_unstable_by_key(mid, split_key::<2>),
+    };
+}
+
+/// Sets every box once the tree's shape and leaf order are known: a leaf's from its
+/// triangles' corners (read through `corners`, one indirection less than the mesh's
+/// triangles), rounded outwards to `f32`, in parallel; then each inner node's as the union
+/// of its children's, which is the same box as rounding the union of the corners (rounding
+/// is monotone). Children sit after their parent in the array, so one backward pass does.
+fn fit_boxes(mesh: &Mesh, nodes: &mut [Node], corners: &[[u32; 3]]) {
+    if corners.is_empty() {
+        // The root of an empty index, a leaf of nothing: the empty box.
+        nodes[0].min = [f32::INFINITY; 3];
+        nodes[0].max = [f32::NEG_INFINITY; 3];
+        return;
+    }
+    nodes.par_iter_mut().filter(|n| n.count > 0).for_each(|n| {
+        let mut min = DVec3::INFINITY;
+        let mut max = DVec3::NEG_INFINITY;
+        let first = n.first as usize;
+        for c in &corners[first..first + n.count as usize] {
+            for &v in c {
+                let p = mesh.positions[v as usize];
+                min = min.min(p);
+                max = max.max(p);
+            }
+        }
+        n.min = [f32_down(min.x), f32_down(min.y), f32_down(min.z)];
+        n.max = [f32_up(max.x), f32_up(max.y), f32_up(max.z)];
+    });
+    for i in (0..nodes.len()).rev() {
+        let n = nodes[i];
+        if n.count == 0 {
+            let (l, r) = (nodes[n.first as usize], nodes[n.first as usize + 1]);
+            nodes[i].min = [0, 1, 2].map(|k| l.min[k].min(r.min[k]));
+            nodes[i].max = [0, 1, 2].map(|k| l.max[k].max(r.max[k]));
         }
     }
-    (
-        [f32_down(min.x), f32_down(min.y), f32_down(min.z)],
-        [f32_up(max.x), f32_up(max.y), f32_up(max.z)],
-    )
 }
 
-fn widest_centroid_axis(items: &[(u32, [f32; 3])]) -> usize {
-    let mut min = [f32::INFINITY; 3];
-    let mut max = [f32::NEG_INFINITY; 3];
+/// The axis along which the centroids spread most. Centroids are never NaN (positions are
+/// finite), so plain vector minima and maxima give the same extents as `f32::min`/`max`.
+fn widest_centroid_axis(items: &[Item]) -> usize {
+    let mut min = glam::Vec3A::INFINITY;
+    let mut max = glam::Vec3A::NEG_INFINITY;
     for (_, c) in items {
-        for k in 0..3 {
-            min[k] = min[k].min(c[k]);
-            max[k] = max[k].max(c[k]);
-        }
+        let c = glam::Vec3A::from_array(*c);
+        min = min.min(c);
+        max = max.max(c);
     }
-    let extent = [max[0] - min[0], max[1] - min[1], max[2] - min[2]];
-    if extent[0] >= extent[1] && extent[0] >= extent[2] {
+    let extent = max - min;
+    if extent.x >= extent.y && extent.x >= extent.z {
         0
-    } else if extent[1] >= extent[2] {
+    } else if extent.y >= extent.z {
         1
     } else {
         2
@@ -557,6 +595,51 @@ mod tests {
             stack.extend([node.first as usize, node.first as usize + 1]);
         }
         assert!(seen.iter().all(|&s| s == 1), "every triangle in one leaf");
+    }
+
+    /// The tree is the one of sorting every node's triangles fully before splitting it (see
+    /// `split`): however the median is selected, the same leaves in the same order.
+    #[test]
+    fn tree_is_that_of_full_sorts() {
+        fn sorted(items: &mut [Item]) {
+            if items.len() <= LEAF_SIZE {
+                return;
+            }
+            let axis = widest_centroid_axis(items);
+            items.sort_by(|a, b| a.1[axis].total_cmp(&b.1[axis]).then(a.0.cmp(&b.0)));
+            let (left, right) = items.split_at_mut(items.len() / 2);
+            sorted(left);
+            sorted(right);
+        }
+        for mesh in [uv_sphere(1.0, 120, 160), grid(9, 7)] {
+            let n = mesh.triangles.len() as u32;
+            // Every other triangle, so that indices and positions do not run in step.
+            let some: Vec<u32> = (0..n).filter(|t| t % 3 != 1).collect();
+            let bvh = TriangleBvh::new(&mesh, some.clone());
+            let mut items: Vec<Item> = some
+                .iter()
+                .map(|&t| {
+                    let [a, b, c] = mesh.triangle_positions(t as usize);
+                    (t, ((a + b + c) / 3.0).as_vec3().to_array())
+                })
+                .collect();
+            sorted(&mut items);
+            let order: Vec<u32> = items.iter().map(|&(t, _)| t).collect();
+            assert_eq!(bvh.order, order);
+            for node in bvh.nodes.iter().filter(|n| n.count > 0) {
+                let (mut min, mut max) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+                for i in node.first..node.first + node.count {
+                    for p in mesh.triangle_positions(bvh.order[i as usize] as usize) {
+                        (min, max) = (min.min(p), max.max(p));
+                    }
+                }
+                assert_eq!(
+                    node.min,
+                    [f32_down(min.x), f32_down(min.y), f32_down(min.z)]
+                );
+                assert_eq!(node.max, [f32_up(max.x), f32_up(max.y), f32_up(max.z)]);
+            }
+        }
     }
 
     #[test]

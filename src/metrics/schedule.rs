@@ -147,12 +147,18 @@ impl FinalReference<'_> {
     /// `FinalMetrics` of `mesh` against the reference as report JSON, with
     /// `reference` = "input" or "input-after-crop"; `Null` without metrics.
     pub fn measure(&self, mesh: &Mesh) -> Value {
+        self.measure_with(mesh, &mut TextureCache::new())
+    }
+
+    /// [`FinalReference::measure`] reading the textures through `textures` (shared with the
+    /// preview).
+    pub fn measure_with(&self, mesh: &Mesh, textures: &mut TextureCache) -> Value {
         let prepared = match &self.prepared {
             None => return Value::Null,
             Some(Err(e)) => return error_value(e),
             Some(Ok(prepared)) => prepared,
         };
-        match super::compare_prepared(mesh, prepared, &mut TextureCache::new()) {
+        match super::compare_prepared(mesh, prepared, textures) {
             Ok(m) => {
                 let mut value = serde_json::to_value(m).expect("metrics always serialise");
                 if let Value::Object(map) = &mut value {

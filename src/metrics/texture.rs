@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "status", rename_all = "kebab-case")]
@@ -38,7 +38,18 @@ pub enum TextureDeviation {
 /// Decoded texture images by path, decoded once (RGB8), shared by later comparisons, through
 /// the loader's bounded image reader ([`texture::load_image`]): a file within
 /// `limits.max_file_bytes`, and all images together within `limits.max_texture_pixels`.
+///
+/// Clones share the images and the pixel allowance, so that the final metrics and the
+/// preview, which run side by side on the same textures, decode each image once: a second
+/// decoded copy of the coral's 2048² texture was 12.6 MB at the whole run's memory peak, at
+/// its end (docs/face-scan.md). A texture is decoded under the cache's lock; the other user
+/// waits for it rather than decoding it again.
+#[derive(Clone)]
 pub struct TextureCache {
+    shared: Arc<Mutex<Images>>,
+}
+
+struct Images {
     images: HashMap<PathBuf, Result<Arc<RgbImage>, String>>,
     limits: InputLimits,
     pixels_left: u64,
@@ -58,21 +69,30 @@ impl TextureCache {
     /// A cache whose images stay within `limits` (the job's input limits).
     pub fn with_limits(limits: InputLimits) -> Self {
         TextureCache {
-            images: HashMap::new(),
-            pixels_left: limits.max_texture_pixels,
-            limits,
+            shared: Arc::new(Mutex::new(Images {
+                images: HashMap::new(),
+                pixels_left: limits.max_texture_pixels,
+                limits,
+            })),
         }
     }
 
     /// The decoded image, or why it could not be read.
     pub fn get(&mut self, path: &Path) -> Result<Arc<RgbImage>, String> {
-        if let Some(known) = self.images.get(path) {
+        let mut cache = self.shared.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(known) = cache.images.get(path) {
             return known.clone();
         }
-        let loaded = texture::load_image(path, &self.limits, &mut self.pixels_left)
-            .map(|img| Arc::new(img.to_rgb8()))
+        let Images {
+            limits,
+            pixels_left,
+            ..
+        } = &mut *cache;
+        // `into_rgb8`: an image decoded as RGB8 (JPEG, most PNGs) is kept, not copied.
+        let loaded = texture::load_image(path, limits, pixels_left)
+            .map(|img| Arc::new(img.into_rgb8()))
             .map_err(|e| e.to_string());
-        self.images.insert(path.to_path_buf(), loaded.clone());
+        cache.images.insert(path.to_path_buf(), loaded.clone());
         loaded
     }
 
@@ -82,13 +102,19 @@ impl TextureCache {
         if t.embedded.is_none() {
             return self.get(&t.path);
         }
-        if let Some(known) = self.images.get(&t.path) {
+        let mut cache = self.shared.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(known) = cache.images.get(&t.path) {
             return known.clone();
         }
-        let loaded = texture::load_texture(t, &self.limits, &mut self.pixels_left)
-            .map(|img| Arc::new(img.to_rgb8()))
+        let Images {
+            limits,
+            pixels_left,
+            ..
+        } = &mut *cache;
+        let loaded = texture::load_texture(t, limits, pixels_left)
+            .map(|img| Arc::new(img.into_rgb8()))
             .map_err(|e| e.to_string());
-        self.images.insert(t.path.clone(), loaded.clone());
+        cache.images.insert(t.path.clone(), loaded.clone());
         loaded
     }
 

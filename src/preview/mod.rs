@@ -171,7 +171,7 @@ pub fn render(
     result: &Mesh,
     options: &PreviewOptions,
 ) -> Result<Preview, PreviewError> {
-    render_with(input, None, result, options)
+    render_with(input, None, result, options, &mut TextureCache::new())
 }
 
 /// [`render`] with a closest-point index over `input` already built (the metrics' one):
@@ -181,7 +181,24 @@ pub fn render_with_index(
     result: &Mesh,
     options: &PreviewOptions,
 ) -> Result<Preview, PreviewError> {
-    render_with(input_index.mesh(), Some(input_index), result, options)
+    render_with_textures(input_index, result, options, &mut TextureCache::new())
+}
+
+/// [`render_with_index`] reading the textures through `textures` (the metrics', which then
+/// need not decode them again).
+pub fn render_with_textures(
+    input_index: &SurfaceIndex<'_>,
+    result: &Mesh,
+    options: &PreviewOptions,
+    textures: &mut TextureCache,
+) -> Result<Preview, PreviewError> {
+    render_with(
+        input_index.mesh(),
+        Some(input_index),
+        result,
+        options,
+        textures,
+    )
 }
 
 fn render_with(
@@ -189,6 +206,7 @@ fn render_with(
     input_index: Option<&SurfaceIndex<'_>>,
     result: &Mesh,
     options: &PreviewOptions,
+    cache: &mut TextureCache,
 ) -> Result<Preview, PreviewError> {
     let start = Instant::now();
     options.validate().map_err(PreviewError::Options)?;
@@ -212,10 +230,9 @@ fn render_with(
 
     let size = options.size;
     let mut image = RgbImage::from_pixel(3 * size, size, Rgb(BACKGROUND));
-    let mut cache = TextureCache::new();
     let panels = [
-        Surface::appearance(input, &mut cache),
-        Surface::appearance(result, &mut cache),
+        Surface::appearance(input, cache),
+        Surface::appearance(result, cache),
         Surface::new(
             result,
             Albedo::Scalar {

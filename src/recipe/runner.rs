@@ -6,6 +6,7 @@
 use super::step::{self, RecipeStep, StepContext};
 use super::{Recipe, Step};
 use crate::mesh::Mesh;
+use crate::metrics::TextureCache;
 pub use crate::metrics::schedule::metrics_value;
 use crate::metrics::schedule::{FinalReference, ReferenceSchedule};
 use crate::ops;
@@ -124,8 +125,10 @@ fn measure_and_draw(
     reference: &FinalReference<'_>,
     stages: Stages<'_>,
 ) -> (Value, Option<Preview>) {
-    let measure = || reference.measure(mesh);
-    let draw = || draw_preview(recipe, mesh, reference, stages);
+    // One decoded copy of each texture for both (see `TextureCache`).
+    let textures = TextureCache::new();
+    let measure = || reference.measure_with(mesh, &mut textures.clone());
+    let draw = || draw_preview(recipe, mesh, reference, stages, &mut textures.clone());
     if reference.has_topology() {
         rayon::join(measure, draw)
     } else {
@@ -142,6 +145,7 @@ fn draw_preview(
     mesh: &Mesh,
     reference: &FinalReference<'_>,
     stages: Stages<'_>,
+    textures: &mut TextureCache,
 ) -> Option<Preview> {
     if !recipe.preview.enabled {
         return None;
@@ -149,7 +153,9 @@ fn draw_preview(
     let index = stages.first + recipe.steps.len();
     stages.progress.stage(index, stages.total, "preview");
     let drawn = match &reference.prepared {
-        Some(Ok(prepared)) => preview::render_with_index(prepared.index(), mesh, &recipe.preview),
+        Some(Ok(prepared)) => {
+            preview::render_with_textures(prepared.index(), mesh, &recipe.preview, textures)
+        }
         _ => preview::render(reference.reference, mesh, &recipe.preview),
     };
     drawn
