@@ -33,7 +33,7 @@
 //!   (half the bytes per candidate, four or eight lanes per vector; docs/smoothing.md,
 //!   "Speed").
 
-use super::{BilateralParams, CHUNK, SmoothGraph};
+use super::{BilateralParams, CHUNK, SmoothGraph, par_for_each_indexed};
 use crate::mesh::model::bounding_box_of;
 use crate::mesh::topology::Topology;
 use glam::{DVec3, Mat4, Vec3A, Vec4};
@@ -314,18 +314,10 @@ fn vertex_normals(plan: &NormalPlan, x: &[Vec4], faces: &mut Vec<Vec3A>, out: &m
         // |(b − a) × (c − a)| is twice the area: the sum below is area-weighted.
         (b - a).cross(c - a)
     }));
-    out.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            for (k, n) in out.iter_mut().enumerate() {
-                let sum: Vec3A = plan
-                    .places_of(chunk * CHUNK + k)
-                    .iter()
-                    .map(|&p| faces[p as usize])
-                    .sum();
-                *n = sum.normalize_or_zero();
-            }
-        });
+    par_for_each_indexed(out, |v, n| {
+        let sum: Vec3A = plan.places_of(v).iter().map(|&p| faces[p as usize]).sum();
+        *n = sum.normalize_or_zero();
+    });
 }
 
 /// Lengths converted to model units, ready for the inner loop.
