@@ -468,12 +468,7 @@ impl Service {
                 .map(|(id, _)| *id)
                 .collect();
             for id in lost {
-                if self.running[&id].gate.abandon() {
-                    let r = self.running.remove(&id).expect("present");
-                    let f = Finish::Interrupted {
-                        reason: "lease lost".into(),
-                    };
-                    let state = self.store.finish(&r.job, &f, self.retry(), 0.0)?;
+                if let Some(state) = self.abandon(id, "lease lost")? {
                     tracing::warn!(job_id = id, state = ?state, "lease lost: another host has the job; stopped and fenced out");
                 }
             }
@@ -694,12 +689,7 @@ impl Service {
                 None => match load_recipe(Path::new(&job.recipe_path)) {
                     Ok(r) => (Arc::new(r), PathBuf::from(&job.recipe_path)),
                     Err(e) => {
-                        let f = Finish::Failed {
-                            kind: FailureKind::Recipe,
-                            message: e.to_string(),
-                            transient: false,
-                        };
-                        self.store.finish(&job, &f, self.retry(), 0.0)?;
+                        self.fail_unstarted(&job, FailureKind::Recipe, e.to_string(), false)?;
                         continue;
                     }
                 },
@@ -727,12 +717,7 @@ impl Service {
                     let _ = tx.send((id, result));
                 });
             if let Err(e) = spawned {
-                let f = Finish::Failed {
-                    kind: FailureKind::Spawn,
-                    message: e.to_string(),
-                    transient: true,
-                };
-                self.store.finish(&job, &f, self.retry(), 0.0)?;
+                self.fail_unstarted(&job, FailureKind::Spawn, e.to_string(), true)?;
                 break;
             }
             self.running.insert(
@@ -762,6 +747,36 @@ impl Service {
             cpu_secs: self.config.job_cpu_secs(),
             wall: secs(self.config.job_timeout_secs),
         }
+    }
+
+    /// Stops running job `id` and records its attempt as interrupted for `reason`, unless
+    /// it is already publishing (then it is let finish): the state the job ends in, or
+    /// `None` when it was let finish.
+    fn abandon(&mut self, id: i64, reason: &str) -> Result<Option<FinalState>, ServiceError> {
+        if !self.running[&id].gate.abandon() {
+            return Ok(None);
+        }
+        let r = self.running.remove(&id).expect("present");
+        let f = Finish::Interrupted {
+            reason: reason.into(),
+        };
+        Ok(Some(self.store.finish(&r.job, &f, self.retry(), 0.0)?))
+    }
+
+    /// Records that claimed `job` failed before its worker ran.
+    fn fail_unstarted(
+        &mut self,
+        job: &ClaimedJob,
+        kind: FailureKind,
+        message: String,
+        transient: bool,
+    ) -> Result<FinalState, ServiceError> {
+        let f = Finish::Failed {
+            kind,
+            message,
+            transient,
+        };
+        Ok(self.store.finish(job, &f, self.retry(), 0.0)?)
     }
 
     fn retry(&self) -> RetryPolicy {
@@ -950,12 +965,7 @@ impl Service {
         // let finish (a rename and an fsync).
         let ids: Vec<i64> = self.running.keys().copied().collect();
         for id in ids {
-            if self.running[&id].gate.abandon() {
-                let r = self.running.remove(&id).expect("present");
-                let f = Finish::Interrupted {
-                    reason: "daemon stopped before the job finished".into(),
-                };
-                let state = self.store.finish(&r.job, &f, self.retry(), 0.0)?;
+            if let Some(state) = self.abandon(id, "daemon stopped before the job finished")? {
                 debug_assert_eq!(state, FinalState::Requeued);
                 tracing::warn!(
                     job_id = id,
