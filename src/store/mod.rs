@@ -332,20 +332,22 @@ pub struct Store {
     path: PathBuf,
 }
 
+/// Turns a SQLite error into one that names the database file `path`.
+fn sqlite_error(path: &Path) -> impl Fn(rusqlite::Error) -> StoreError + Copy + '_ {
+    move |source| StoreError::Sqlite {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
 impl Store {
     fn err(&self, source: rusqlite::Error) -> StoreError {
-        StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        }
+        sqlite_error(&self.path)(source)
     }
 
     /// Opens (creating if needed) and migrates the database: the daemon's connection.
     pub fn open(path: &Path) -> Result<Store> {
-        let sq = |source| StoreError::Sqlite {
-            path: path.to_path_buf(),
-            source,
-        };
+        let sq = sqlite_error(path);
         let conn = Connection::open(path).map_err(sq)?;
         // journal_mode persists in the file; set outside any migration.
         conn.pragma_update(None, "journal_mode", "WAL")
@@ -439,10 +441,7 @@ impl Store {
         }
         for version in current + 1..=schema::LATEST {
             let path = self.path.clone();
-            let sq = |source| StoreError::Sqlite {
-                path: path.clone(),
-                source,
-            };
+            let sq = sqlite_error(&path);
             let tx = self
                 .conn
                 .transaction_with_behavior(TransactionBehavior::Immediate)
@@ -474,10 +473,7 @@ impl Store {
     pub fn enqueue(&mut self, job: &NewJob) -> Result<Enqueued> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         let existing: Option<(i64, String, Option<String>)> = tx
             .query_row(
@@ -556,10 +552,7 @@ impl Store {
     pub fn claim(&mut self, owner: &Owner) -> Result<Option<ClaimedJob>> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         // A cheap read first, so that an idle daemon takes no write lock every second.
         let any: Option<i64> = self
             .conn
@@ -628,10 +621,7 @@ impl Store {
     ) -> Result<FinalState> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         let final_state = match outcome {
             Finish::Done {
@@ -691,10 +681,7 @@ impl Store {
     pub fn recover_running(&mut self) -> Result<usize> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         tx.execute(
             "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind=?2,
@@ -728,10 +715,7 @@ impl Store {
     pub fn requeue(&mut self, id: i64) -> Result<String> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         let state: Option<String> = tx
             .query_row("SELECT state FROM job WHERE id=?1", [id], |r| r.get(0))
@@ -804,10 +788,7 @@ impl Store {
     /// Online backup into `dest` (the daemon may keep writing meanwhile), then an
     /// integrity check of the copy.
     pub fn backup(&self, dest: &Path) -> Result<()> {
-        let sq = |source| StoreError::Sqlite {
-            path: dest.to_path_buf(),
-            source,
-        };
+        let sq = sqlite_error(dest);
         self.conn
             .backup(rusqlite::MAIN_DB, dest, None)
             .map_err(sq)?;
@@ -1001,10 +982,7 @@ impl Store {
     /// Every job's input signatures, keyed by (root, mesh rel_path), newest job last, so
     /// that the reconciler need not hash again at start-up what it already recorded.
     pub fn known_inputs(&self) -> Result<Vec<KnownSet>> {
-        let err = |source| StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        };
+        let err = sqlite_error(&self.path);
         let mut stmt = self
             .conn
             .prepare(
