@@ -20,8 +20,8 @@ use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
 use crate::store::pg::Fence;
 use crate::store::{
-    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, NewJob, Owner, Queue, RetryPolicy,
-    StoreError, now_ms,
+    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, JobOrder, NewJob, Owner, Queue,
+    RetryPolicy, StoreError, now_ms,
 };
 use std::collections::HashMap;
 use std::os::unix::fs::MetadataExt;
@@ -597,13 +597,15 @@ impl Service {
                 let r = &self.roots[set.root_index];
                 let root = r.path.to_string_lossy().into_owned();
                 let job = NewJob {
-                    job_key: job_key(&set.set_hash, &r.recipe_hash),
-                    set_hash: set.set_hash.clone(),
-                    root: root.clone(),
-                    rel_path: set.rel_path.clone(),
-                    output_root: r.output.to_string_lossy().into_owned(),
-                    recipe_path: r.recipe_path.to_string_lossy().into_owned(),
-                    recipe_hash: r.recipe_hash.clone(),
+                    order: JobOrder {
+                        job_key: job_key(&set.set_hash, &r.recipe_hash),
+                        set_hash: set.set_hash.clone(),
+                        root: root.clone(),
+                        rel_path: set.rel_path.clone(),
+                        output_root: r.output.to_string_lossy().into_owned(),
+                        recipe_path: r.recipe_path.to_string_lossy().into_owned(),
+                        recipe_hash: r.recipe_hash.clone(),
+                    },
                     recipe_json: r.recipe.resolved_json().to_string(),
                     config_hash: self.config_hash.clone(),
                     max_attempts: self.config.max_attempts,
@@ -682,12 +684,12 @@ impl Service {
             let recipe_source = self
                 .roots
                 .iter()
-                .find(|r| r.recipe_path.to_string_lossy() == job.recipe_path)
+                .find(|r| r.recipe_path.to_string_lossy() == job.order.recipe_path)
                 .map(|r| (r.recipe.clone(), r.recipe_path.clone()));
             let (recipe, recipe_path) = match recipe_source {
                 Some(x) => x,
-                None => match load_recipe(Path::new(&job.recipe_path)) {
-                    Ok(r) => (Arc::new(r), PathBuf::from(&job.recipe_path)),
+                None => match load_recipe(Path::new(&job.order.recipe_path)) {
+                    Ok(r) => (Arc::new(r), PathBuf::from(&job.order.recipe_path)),
                     Err(e) => {
                         self.fail_unstarted(&job, FailureKind::Recipe, e.to_string(), false)?;
                         continue;
@@ -709,7 +711,7 @@ impl Service {
             };
             let tx = self.results_tx.clone();
             let id = job.id;
-            tracing::info!(job_id = id, input = %job.rel_path, attempt = job.attempt, "running");
+            tracing::info!(job_id = id, input = %job.order.rel_path, attempt = job.attempt, "running");
             let spawned = std::thread::Builder::new()
                 .name(format!("scanmill-job-{id}"))
                 .spawn(move || {

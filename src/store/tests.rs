@@ -11,13 +11,15 @@ fn owner() -> Owner {
 
 fn job(key: &str, rel: &str) -> NewJob {
     NewJob {
-        job_key: key.into(),
-        set_hash: format!("set-{key}"),
-        root: "/in".into(),
-        rel_path: rel.into(),
-        output_root: "/out".into(),
-        recipe_path: "r.toml".into(),
-        recipe_hash: "rh".into(),
+        order: JobOrder {
+            job_key: key.into(),
+            set_hash: format!("set-{key}"),
+            root: "/in".into(),
+            rel_path: rel.into(),
+            output_root: "/out".into(),
+            recipe_path: "r.toml".into(),
+            recipe_hash: "rh".into(),
+        },
         recipe_json: "{}".into(),
         config_hash: "ch".into(),
         max_attempts: 2,
@@ -303,7 +305,7 @@ fn vanished_input_job_is_revived_when_input_returns() {
         Enqueued::Revived(1)
     );
     let c = s.claim(&owner()).unwrap().unwrap();
-    assert_eq!(c.rel_path, "back.ply");
+    assert_eq!(c.order.rel_path, "back.ply");
 }
 
 #[test]
