@@ -372,6 +372,7 @@ impl CompareTable {
 mod tests {
     use super::*;
     use crate::mesh::shapes::uv_sphere;
+    use crate::testing::on_threads;
     use std::path::Path;
 
     fn recipe(text: &str) -> Recipe {
@@ -433,14 +434,7 @@ mod tests {
 
     #[test]
     fn deterministic_across_thread_counts() {
-        let on = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(table)
-        };
-        let (a, b) = (on(1), on(3));
+        let (a, b) = (on_threads(1, table), on_threads(3, table));
         let strip = |t: &CompareTable| {
             t.rows
                 .iter()

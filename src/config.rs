@@ -43,40 +43,6 @@ pub enum ConfigError {
     },
 }
 
-fn default_state_dir() -> PathBuf {
-    PathBuf::from("./state")
-}
-fn default_workers() -> usize {
-    1
-}
-fn default_max_attempts() -> u32 {
-    3
-}
-fn default_retry_base_secs() -> f64 {
-    30.0
-}
-fn default_retry_max_secs() -> f64 {
-    3600.0
-}
-fn default_job_timeout_secs() -> f64 {
-    3600.0
-}
-fn default_drain_timeout_secs() -> f64 {
-    60.0
-}
-fn default_rescan_secs() -> f64 {
-    60.0
-}
-fn default_incomplete_report_secs() -> f64 {
-    600.0
-}
-fn default_max_input_bytes() -> u64 {
-    4 << 30
-}
-fn default_min_free_disk_mb() -> u64 {
-    1024
-}
-
 /// Longest time any `*_secs` key may be: a week. Larger values are typos, and would
 /// overflow the clock arithmetic.
 const MAX_SECS: f64 = 7.0 * 24.0 * 3600.0;
@@ -136,95 +102,90 @@ pub struct WatchConfig {
     pub follow_symlinks: bool,
 }
 
-/// The whole daemon configuration.
+/// The whole daemon configuration. Every key is optional: a missing one takes its value from
+/// [`DaemonConfig::default`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct DaemonConfig {
     /// SQLite database, lock file.
-    #[serde(default = "default_state_dir")]
     pub state_dir: PathBuf,
     /// Jobs processed at the same time.
-    #[serde(default = "default_workers")]
     pub workers: usize,
     /// Create missing watch, output and state folders at start-up (handy for a fresh
     /// checkout; leave it off in production so a missing mount is an error).
-    #[serde(default)]
     pub create_missing_dirs: bool,
     /// Attempts before a job that keeps failing for a transient reason is quarantined.
-    #[serde(default = "default_max_attempts")]
     pub max_attempts: u32,
     /// Retry delay after the first failed attempt; doubles each attempt, up to the max.
-    #[serde(default = "default_retry_base_secs")]
     pub retry_base_secs: f64,
-    #[serde(default = "default_retry_max_secs")]
     pub retry_max_secs: f64,
     /// A job running longer than this is abandoned and recorded as failed (timeout).
-    #[serde(default = "default_job_timeout_secs")]
     pub job_timeout_secs: f64,
     /// On SIGTERM, running jobs get this long to finish before they are put back in the
     /// queue. Keep it below the unit's `TimeoutStopSec`.
-    #[serde(default = "default_drain_timeout_secs")]
     pub drain_timeout_secs: f64,
     /// Full walk of every watched folder this often, whatever the events say.
-    #[serde(default = "default_rescan_secs")]
     pub rescan_secs: f64,
     /// A scan with a member still missing is recorded as waiting (and logged) after this long.
-    #[serde(default = "default_incomplete_report_secs")]
     pub incomplete_report_secs: f64,
     /// Largest input set (all members together) accepted, in bytes.
-    #[serde(default = "default_max_input_bytes")]
     pub max_input_bytes: u64,
     /// Claiming pauses while an output folder's file system has less free space than this.
-    #[serde(default = "default_min_free_disk_mb")]
     pub min_free_disk_mb: u64,
     /// Input limits of every job (`[limits]`, see `mesh::limits`); missing keys take their
     /// defaults.
-    #[serde(default)]
     pub limits: InputLimits,
     /// Memory limit of one job's worker process, in MiB; 0 = automatic (from the input's
     /// size, at most three quarters of the machine's memory shared among `workers`).
-    #[serde(default)]
     pub job_memory_mb: u64,
     /// CPU-time limit of one job's worker process (all its threads), in seconds; 0 =
     /// automatic (`job_timeout_secs` × the number of CPUs, so that the wall-clock limit
     /// comes first on a machine that is not overloaded).
-    #[serde(default)]
     pub job_cpu_secs: u64,
-    #[serde(default)]
     pub watch: Vec<WatchConfig>,
     /// The web dashboard and `/metrics` (`[web]`, off unless `enabled`). Not part of
     /// [`DaemonConfig::hash`]: it does not change what a job produces, and the token is a
     /// secret that has no business in the audit log.
-    #[serde(default, skip_serializing)]
+    #[serde(skip_serializing)]
     pub web: crate::web::WebConfig,
     /// The job queue and audit log (`[store]`): absent, SQLite in `state_dir`; a
     /// PostgreSQL URL, a queue shared with other hosts (docs/scale-out.md). Not part of
     /// the hash: where the queue lives does not change what a job produces.
-    #[serde(default, skip_serializing)]
+    #[serde(skip_serializing)]
     pub store: crate::store::StoreConfig,
+}
+
+/// The value of every key a configuration file leaves out.
+impl Default for DaemonConfig {
+    fn default() -> Self {
+        DaemonConfig {
+            state_dir: PathBuf::from("./state"),
+            workers: 1,
+            create_missing_dirs: false,
+            max_attempts: 3,
+            retry_base_secs: 30.0,
+            retry_max_secs: 3600.0,
+            job_timeout_secs: 3600.0,
+            drain_timeout_secs: 60.0,
+            rescan_secs: 60.0,
+            incomplete_report_secs: 600.0,
+            max_input_bytes: 4 << 30,
+            min_free_disk_mb: 1024,
+            limits: InputLimits::default(),
+            job_memory_mb: 0,
+            job_cpu_secs: 0,
+            watch: Vec::new(),
+            web: crate::web::WebConfig::default(),
+            store: crate::store::StoreConfig::default(),
+        }
+    }
 }
 
 impl DaemonConfig {
     /// The built-in default: watch `./inbox`, write `./outbox`, state in `./state`.
     pub fn built_in() -> DaemonConfig {
         DaemonConfig {
-            state_dir: default_state_dir(),
-            workers: default_workers(),
             create_missing_dirs: true,
-            max_attempts: default_max_attempts(),
-            retry_base_secs: default_retry_base_secs(),
-            retry_max_secs: default_retry_max_secs(),
-            job_timeout_secs: default_job_timeout_secs(),
-            drain_timeout_secs: default_drain_timeout_secs(),
-            rescan_secs: default_rescan_secs(),
-            incomplete_report_secs: default_incomplete_report_secs(),
-            max_input_bytes: default_max_input_bytes(),
-            min_free_disk_mb: default_min_free_disk_mb(),
-            limits: InputLimits::default(),
-            job_memory_mb: 0,
-            job_cpu_secs: 0,
-            web: crate::web::WebConfig::default(),
-            store: crate::store::StoreConfig::default(),
             watch: vec![WatchConfig {
                 path: PathBuf::from("./inbox"),
                 output: PathBuf::from("./outbox"),
@@ -236,6 +197,7 @@ impl DaemonConfig {
                 marker: None,
                 follow_symlinks: false,
             }],
+            ..DaemonConfig::default()
         }
     }
 

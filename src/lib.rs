@@ -14,5 +14,7 @@ pub mod process;
 pub mod recipe;
 pub mod report;
 pub mod store;
+#[cfg(test)]
+mod testing;
 pub mod text;
 pub mod web;

@@ -544,16 +544,18 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn new_job(i: usize) -> scanmill::store::NewJob {
-    use scanmill::store::{InputMember, InputRole, NewJob, RelPath};
+    use scanmill::store::{InputMember, InputRole, JobOrder, NewJob, RelPath};
     let rel = RelPath::new(format!("s{i}.ply")).unwrap();
     NewJob {
-        job_key: format!("key{i}"),
-        set_hash: format!("set{i}"),
-        root: "/in".into(),
-        rel_path: rel.clone(),
-        output_root: "/out".into(),
-        recipe_path: "/r.toml".into(),
-        recipe_hash: "r".into(),
+        order: JobOrder {
+            job_key: format!("key{i}"),
+            set_hash: format!("set{i}"),
+            root: "/in".into(),
+            rel_path: rel.clone(),
+            output_root: "/out".into(),
+            recipe_path: "/r.toml".into(),
+            recipe_hash: "r".into(),
+        },
         recipe_json: "{}".into(),
         config_hash: "c".into(),
         max_attempts: 3,

@@ -20,8 +20,8 @@ use crate::config::{ConfigSource, DaemonConfig, absolute, load_recipe};
 use crate::recipe::Recipe;
 use crate::store::pg::Fence;
 use crate::store::{
-    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, NewJob, Owner, Queue, RetryPolicy,
-    StoreError, now_ms,
+    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, JobOrder, NewJob, Owner, Queue,
+    RetryPolicy, StoreError, now_ms,
 };
 use std::collections::HashMap;
 use std::os::unix::fs::MetadataExt;
@@ -468,12 +468,7 @@ impl Service {
                 .map(|(id, _)| *id)
                 .collect();
             for id in lost {
-                if self.running[&id].gate.abandon() {
-                    let r = self.running.remove(&id).expect("present");
-                    let f = Finish::Interrupted {
-                        reason: "lease lost".into(),
-                    };
-                    let state = self.store.finish(&r.job, &f, self.retry(), 0.0)?;
+                if let Some(state) = self.abandon(id, "lease lost")? {
                     tracing::warn!(job_id = id, state = ?state, "lease lost: another host has the job; stopped and fenced out");
                 }
             }
@@ -602,13 +597,15 @@ impl Service {
                 let r = &self.roots[set.root_index];
                 let root = r.path.to_string_lossy().into_owned();
                 let job = NewJob {
-                    job_key: job_key(&set.set_hash, &r.recipe_hash),
-                    set_hash: set.set_hash.clone(),
-                    root: root.clone(),
-                    rel_path: set.rel_path.clone(),
-                    output_root: r.output.to_string_lossy().into_owned(),
-                    recipe_path: r.recipe_path.to_string_lossy().into_owned(),
-                    recipe_hash: r.recipe_hash.clone(),
+                    order: JobOrder {
+                        job_key: job_key(&set.set_hash, &r.recipe_hash),
+                        set_hash: set.set_hash.clone(),
+                        root: root.clone(),
+                        rel_path: set.rel_path.clone(),
+                        output_root: r.output.to_string_lossy().into_owned(),
+                        recipe_path: r.recipe_path.to_string_lossy().into_owned(),
+                        recipe_hash: r.recipe_hash.clone(),
+                    },
                     recipe_json: r.recipe.resolved_json().to_string(),
                     config_hash: self.config_hash.clone(),
                     max_attempts: self.config.max_attempts,
@@ -687,19 +684,14 @@ impl Service {
             let recipe_source = self
                 .roots
                 .iter()
-                .find(|r| r.recipe_path.to_string_lossy() == job.recipe_path)
+                .find(|r| r.recipe_path.to_string_lossy() == job.order.recipe_path)
                 .map(|r| (r.recipe.clone(), r.recipe_path.clone()));
             let (recipe, recipe_path) = match recipe_source {
                 Some(x) => x,
-                None => match load_recipe(Path::new(&job.recipe_path)) {
-                    Ok(r) => (Arc::new(r), PathBuf::from(&job.recipe_path)),
+                None => match load_recipe(Path::new(&job.order.recipe_path)) {
+                    Ok(r) => (Arc::new(r), PathBuf::from(&job.order.recipe_path)),
                     Err(e) => {
-                        let f = Finish::Failed {
-                            kind: FailureKind::Recipe,
-                            message: e.to_string(),
-                            transient: false,
-                        };
-                        self.store.finish(&job, &f, self.retry(), 0.0)?;
+                        self.fail_unstarted(&job, FailureKind::Recipe, e.to_string(), false)?;
                         continue;
                     }
                 },
@@ -719,7 +711,7 @@ impl Service {
             };
             let tx = self.results_tx.clone();
             let id = job.id;
-            tracing::info!(job_id = id, input = %job.rel_path, attempt = job.attempt, "running");
+            tracing::info!(job_id = id, input = %job.order.rel_path, attempt = job.attempt, "running");
             let spawned = std::thread::Builder::new()
                 .name(format!("scanmill-job-{id}"))
                 .spawn(move || {
@@ -727,12 +719,7 @@ impl Service {
                     let _ = tx.send((id, result));
                 });
             if let Err(e) = spawned {
-                let f = Finish::Failed {
-                    kind: FailureKind::Spawn,
-                    message: e.to_string(),
-                    transient: true,
-                };
-                self.store.finish(&job, &f, self.retry(), 0.0)?;
+                self.fail_unstarted(&job, FailureKind::Spawn, e.to_string(), true)?;
                 break;
             }
             self.running.insert(
@@ -762,6 +749,36 @@ impl Service {
             cpu_secs: self.config.job_cpu_secs(),
             wall: secs(self.config.job_timeout_secs),
         }
+    }
+
+    /// Stops running job `id` and records its attempt as interrupted for `reason`, unless
+    /// it is already publishing (then it is let finish): the state the job ends in, or
+    /// `None` when it was let finish.
+    fn abandon(&mut self, id: i64, reason: &str) -> Result<Option<FinalState>, ServiceError> {
+        if !self.running[&id].gate.abandon() {
+            return Ok(None);
+        }
+        let r = self.running.remove(&id).expect("present");
+        let f = Finish::Interrupted {
+            reason: reason.into(),
+        };
+        Ok(Some(self.store.finish(&r.job, &f, self.retry(), 0.0)?))
+    }
+
+    /// Records that claimed `job` failed before its worker ran.
+    fn fail_unstarted(
+        &mut self,
+        job: &ClaimedJob,
+        kind: FailureKind,
+        message: String,
+        transient: bool,
+    ) -> Result<FinalState, ServiceError> {
+        let f = Finish::Failed {
+            kind,
+            message,
+            transient,
+        };
+        Ok(self.store.finish(job, &f, self.retry(), 0.0)?)
     }
 
     fn retry(&self) -> RetryPolicy {
@@ -950,12 +967,7 @@ impl Service {
         // let finish (a rename and an fsync).
         let ids: Vec<i64> = self.running.keys().copied().collect();
         for id in ids {
-            if self.running[&id].gate.abandon() {
-                let r = self.running.remove(&id).expect("present");
-                let f = Finish::Interrupted {
-                    reason: "daemon stopped before the job finished".into(),
-                };
-                let state = self.store.finish(&r.job, &f, self.retry(), 0.0)?;
+            if let Some(state) = self.abandon(id, "daemon stopped before the job finished")? {
                 debug_assert_eq!(state, FinalState::Requeued);
                 tracing::warn!(
                     job_id = id,

@@ -90,9 +90,9 @@ fn failure(kind: FailureKind, message: impl Into<String>, transient: bool) -> Fi
 /// Runs the job to its end. Never panics.
 pub fn run(spec: JobSpec) -> JobResult {
     let start = Instant::now();
-    let span = tracing::info_span!("job", job_id = spec.job.id, input = %spec.job.rel_path, attempt = spec.job.attempt);
+    let span = tracing::info_span!("job", job_id = spec.job.id, input = %spec.job.order.rel_path, attempt = spec.job.attempt);
     let _guard = span.enter();
-    let staging = Path::new(&spec.job.output_root)
+    let staging = Path::new(&spec.job.order.output_root)
         .join(STAGING_DIR)
         .join(format!(
             "job{}-g{}-a{}-{}",
@@ -129,7 +129,7 @@ pub fn run(spec: JobSpec) -> JobResult {
 
 /// Checks every input member is still the file that was queued.
 fn check_inputs(job: &ClaimedJob) -> Result<(), Box<Finish>> {
-    let root = Path::new(&job.root);
+    let root = Path::new(&job.order.root);
     for m in &job.inputs {
         let path = root.join(&m.rel_path);
         match StatSig::of(&path) {
@@ -178,7 +178,7 @@ fn run_inner(spec: &JobSpec, staging: &Path) -> Option<Finish> {
     let phases = || -> Result<Finish, Halt> {
         preflight(spec)?;
         let job = &spec.job;
-        let primary = Path::new(&job.root).join(&job.rel_path);
+        let primary = Path::new(&job.order.root).join(&job.order.rel_path);
         let stem = output_stem(&primary);
         let scan_dir = staging.join(&stem);
         std::fs::create_dir_all(&scan_dir).map_err(|e| {
@@ -242,7 +242,7 @@ fn fenced(
 /// queued, and the input set is within `max_input_bytes`.
 fn preflight(spec: &JobSpec) -> Result<(), Halt> {
     let job = &spec.job;
-    if spec.recipe.hash() != job.recipe_hash {
+    if spec.recipe.hash() != job.order.recipe_hash {
         return Err(halt(
             FailureKind::RecipeChanged,
             format!(
@@ -274,7 +274,7 @@ fn process_in_worker(spec: &JobSpec, primary: PathBuf, scan_dir: &Path) -> Resul
         job_id: job.id,
         input: primary,
         recipe: spec.recipe_path.clone(),
-        recipe_hash: job.recipe_hash.clone(),
+        recipe_hash: job.order.recipe_hash.clone(),
         out: scan_dir.to_path_buf(),
         limits: spec.limits,
         input_limits: spec.input_limits.clone(),
@@ -319,15 +319,15 @@ fn write_sidecar(
     let sidecar_report = report.with_output_folder(scan_dir, Path::new(""));
     let sidecar = json!({
         "job_id": job.id,
-        "job_key": job.job_key,
+        "job_key": job.order.job_key,
         "generation": job.generation,
         "attempt": job.attempt,
-        "set_hash": job.set_hash,
+        "set_hash": job.order.set_hash,
         "inputs": job.inputs.iter().map(|m| json!({
-            "path": crate::text::escape_path(&Path::new(&job.root).join(&m.rel_path)),
+            "path": crate::text::escape_path(&Path::new(&job.order.root).join(&m.rel_path)),
             "role": m.role.as_str(), "bytes": m.size, "mtime_ns": m.mtime_ns, "sha256": m.sha256,
         })).collect::<Vec<_>>(),
-        "recipe": { "path": spec.recipe_path, "hash": job.recipe_hash, "resolved": spec.recipe.resolved_json() },
+        "recipe": { "path": spec.recipe_path, "hash": job.order.recipe_hash, "resolved": spec.recipe.resolved_json() },
         "config_hash": spec.config_hash,
         "scanmill_version": spec.owner.app_version,
         "host": spec.owner.host,
@@ -358,8 +358,12 @@ fn publish(spec: &JobSpec, scan_dir: &Path, stem: &str) -> Result<PathBuf, Halt>
         return Err(Halt::Abandoned);
     }
     // The output folder is named from the escaped form: never a control character in it.
-    let dest = publish::destination(Path::new(&job.output_root), &job.rel_path.to_string(), stem);
-    match publish::publish_dir(scan_dir, &dest, stem, &job.job_key, job.generation) {
+    let dest = publish::destination(
+        Path::new(&job.order.output_root),
+        &job.order.rel_path.to_string(),
+        stem,
+    );
+    match publish::publish_dir(scan_dir, &dest, stem, &job.order.job_key, job.generation) {
         Ok(Published::New(d)) => Ok(d),
         Ok(Published::AlreadyThere(d)) => {
             tracing::info!(

@@ -493,6 +493,7 @@ mod tests {
     use super::*;
     use crate::mesh::shapes::{grid, uv_sphere};
     use crate::metrics::surface::rng;
+    use crate::testing::on_threads;
     use rand::RngExt;
 
     fn brute_force(mesh: &Mesh, p: DVec3) -> f64 {
@@ -556,11 +557,7 @@ mod tests {
         assert!(n > 2 * PARALLEL_BUILD);
         let all: Vec<u32> = (0..n as u32).collect();
         let build_on = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            on_threads(threads, || {
                 let bvh = TriangleBvh::new(&mesh, all.clone());
                 let nodes: Vec<_> = bvh
                     .nodes

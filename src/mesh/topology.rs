@@ -147,6 +147,13 @@ fn row<'a>(offsets: &[u32], list: &'a [u32], i: usize) -> &'a [u32] {
     &list[offsets[i] as usize..offsets[i + 1] as usize]
 }
 
+/// Triangle `t`'s three entries of an array kept per corner or per side (`3t + k`).
+#[inline]
+fn of_triangle(per_corner: &[u32], t: u32) -> [u32; 3] {
+    let c = 3 * t as usize;
+    [per_corner[c], per_corner[c + 1], per_corner[c + 2]]
+}
+
 /// Turns per-row counts into CSR offsets (`counts.len() + 1` entries).
 fn offsets_from_counts(counts: &[u32]) -> Vec<u32> {
     let mut offsets = Vec::with_capacity(counts.len() + 1);
@@ -326,12 +333,7 @@ impl Topology {
     /// The three vertices of triangle `t`.
     #[inline]
     pub fn triangle_vertices(&self, t: u32) -> [u32; 3] {
-        let c = 3 * t as usize;
-        [
-            self.corner_vertices[c],
-            self.corner_vertices[c + 1],
-            self.corner_vertices[c + 2],
-        ]
+        of_triangle(&self.corner_vertices, t)
     }
 
     /// The corners (`3t + k`) at vertex `v`, ascending.
@@ -425,12 +427,7 @@ impl Topology {
     /// The edges of triangle `t`'s three sides.
     #[inline]
     pub fn triangle_edges(&self, t: u32) -> [u32; 3] {
-        let s = 3 * t as usize;
-        [
-            self.side_edges[s],
-            self.side_edges[s + 1],
-            self.side_edges[s + 2],
-        ]
+        of_triangle(&self.side_edges, t)
     }
 
     /// The other side of an interior manifold edge (`None` on boundary and non-manifold

@@ -295,6 +295,25 @@ fn lerp_color(a: [u8; 4], b: [u8; 4], t: f64) -> [u8; 4] {
     std::array::from_fn(|i| (a[i] as f64 + (b[i] as f64 - a[i] as f64) * t).round() as u8)
 }
 
+/// Position, texture coordinate, normal and colour where the segment `a → b` crosses
+/// `plane`, each interpolated linearly (the normal renormalised, the position put exactly
+/// on the plane).
+type Crossing = (DVec3, Option<DVec2>, Option<DVec3>, Option<[u8; 4]>);
+
+fn crossing(a: &PolyVertex, b: &PolyVertex, plane: &Plane) -> Crossing {
+    let (da, db) = (plane.inside(a.position), plane.inside(b.position));
+    let t = da / (da - db);
+    let mut position = a.position + (b.position - a.position) * t;
+    position[plane.axis] = plane.value;
+    let texcoord = a.texcoord.zip(b.texcoord).map(|(x, y)| x + (y - x) * t);
+    let normal = a
+        .normal
+        .zip(b.normal)
+        .map(|(x, y)| (x + (y - x) * t).normalize_or(x));
+    let color = a.color.zip(b.color).map(|(x, y)| lerp_color(x, y, t));
+    (position, texcoord, normal, color)
+}
+
 /// Key of a cut point's wedge on an original edge: edge, plane and the two end wedges'
 /// attribute indices (so sides with the same attributes share it).
 type EdgeWedgeKey = (
@@ -363,16 +382,7 @@ impl Clipper<'_> {
                     .expect("an edge of the triangle joins two of its corners")
             };
             let (ca, cb) = (end(a), end(b));
-            let (da, db) = (plane.inside(ca.position), plane.inside(cb.position));
-            let t = da / (da - db);
-            let mut position = ca.position + (cb.position - ca.position) * t;
-            position[plane.axis] = plane.value;
-            let texcoord = ca.texcoord.zip(cb.texcoord).map(|(x, y)| x + (y - x) * t);
-            let normal = ca
-                .normal
-                .zip(cb.normal)
-                .map(|(x, y)| (x + (y - x) * t).normalize_or(x));
-            let color = ca.color.zip(cb.color).map(|(x, y)| lerp_color(x, y, t));
+            let (position, texcoord, normal, color) = crossing(&ca, &cb, plane);
             let vertex = match self.edge_vertices.get(&(a, b, k)) {
                 Some(&v) => v,
                 None => {
@@ -403,16 +413,7 @@ impl Clipper<'_> {
                 carrier: Carrier::Edge(a, b),
             };
         }
-        let (dp, dq) = (plane.inside(p.position), plane.inside(q.position));
-        let t = dp / (dp - dq);
-        let mut position = p.position + (q.position - p.position) * t;
-        position[plane.axis] = plane.value;
-        let texcoord = p.texcoord.zip(q.texcoord).map(|(x, y)| x + (y - x) * t);
-        let normal = p
-            .normal
-            .zip(q.normal)
-            .map(|(x, y)| (x + (y - x) * t).normalize_or(x));
-        let color = p.color.zip(q.color).map(|(x, y)| lerp_color(x, y, t));
+        let (position, texcoord, normal, color) = crossing(p, q, plane);
         let vertex = self.push_vertex(position, color);
         let wedge = self.push_wedge(vertex, texcoord, normal);
         PolyVertex {

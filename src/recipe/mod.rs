@@ -557,6 +557,26 @@ mod tests {
         Recipe::from_toml(text, Path::new("r.toml"))
     }
 
+    /// Each recipe text is refused with a message that names every one of its snippets.
+    fn assert_refused(cases: &[(&str, &[&str])]) {
+        for (text, snippets) in cases {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(snippets.iter().all(|s| e.contains(s)), "{text:?}: {e}");
+        }
+    }
+
+    /// A `[[step]]` table of `kind` with the lines `rest`.
+    fn step(kind: &str, rest: &str) -> String {
+        format!("[[step]]\nkind = \"{kind}\"\n{rest}")
+    }
+
+    /// Each recipe text hashes to its hash.
+    fn assert_hashes(cases: &[(String, &str)]) {
+        for (text, hash) in cases {
+            assert_eq!(parse(text).unwrap().hash(), *hash, "{text}");
+        }
+    }
+
     #[test]
     fn weld_tolerance_is_range_checked() {
         assert!(parse("[input]\nweld_tolerance = 0.001\n").is_ok());
@@ -610,26 +630,21 @@ mod tests {
 
     #[test]
     fn unknown_kind_names_line_and_choices() {
-        let e = parse("[output]\nformat = \"obj\"\n\n[[step]]\nkind = \"sharpen\"\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("line 5"), "{e}");
-        assert!(
-            e.contains("sharpen") && e.contains("normals") && e.contains("decimate"),
-            "{e}"
-        );
+        assert_refused(&[(
+            "[output]\nformat = \"obj\"\n\n[[step]]\nkind = \"sharpen\"\n",
+            &["line 5", "sharpen", "normals", "decimate"],
+        )]);
     }
 
     #[test]
     fn unknown_key_is_an_error() {
-        let e = parse("[[step]]\nkind = \"normals\"\ncrease = 30\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("crease") && e.contains("crease_angle"), "{e}");
-        let e = parse("[output]\nformat = \"stl\"\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("stl") && e.contains("obj"), "{e}");
+        assert_refused(&[
+            (
+                "[[step]]\nkind = \"normals\"\ncrease = 30\n",
+                &["crease", "crease_angle"],
+            ),
+            ("[output]\nformat = \"stl\"\n", &["stl", "obj"]),
+        ]);
     }
 
     #[test]
@@ -639,17 +654,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!(r.steps.len(), 2);
-        let e = parse("[[step]]\nkind = \"decimate\"\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("line 1") && e.contains("target_faces"), "{e}");
-        let e = parse("[[step]]\nkind = \"decimate\"\ntarget_faces = 10\nmethod = \"qem\"\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("face-collapse") && e.contains("cluster-keep"),
-            "{e}"
-        );
+        assert_refused(&[
+            (
+                "[[step]]\nkind = \"decimate\"\n",
+                &["line 1", "target_faces"],
+            ),
+            (
+                "[[step]]\nkind = \"decimate\"\ntarget_faces = 10\nmethod = \"qem\"\n",
+                &["face-collapse", "cluster-keep"],
+            ),
+        ]);
     }
 
     #[test]
@@ -678,25 +692,19 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
-        let e = parse("[[step]]\nkind = \"crop\"\nmin = [0, 0, 0]\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("line 1") && e.contains("min and max"), "{e}");
-        let e = parse("\n[[step]]\nkind = \"crop\"\nabs_max = [1, 1, 1]\nmode = \"inside\"\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("line 5") && e.contains("any-corner-outside"),
-            "{e}"
-        );
-        let e = parse("[[step]]\nkind = \"normals\"\nmetrics = 1\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("metrics"), "{e}");
-        let e = parse("[metrics]\nsamples = 0\n").unwrap_err().to_string();
-        assert!(e.contains("samples"), "{e}");
-        let e = parse("[metrics]\nsample = 10\n").unwrap_err().to_string();
-        assert!(e.contains("sample") && e.contains("enabled"), "{e}");
+        assert_refused(&[
+            (
+                "[[step]]\nkind = \"crop\"\nmin = [0, 0, 0]\n",
+                &["line 1", "min and max"],
+            ),
+            (
+                "\n[[step]]\nkind = \"crop\"\nabs_max = [1, 1, 1]\nmode = \"inside\"\n",
+                &["line 5", "any-corner-outside"],
+            ),
+            ("[[step]]\nkind = \"normals\"\nmetrics = 1\n", &["metrics"]),
+            ("[metrics]\nsamples = 0\n", &["samples"]),
+            ("[metrics]\nsample = 10\n", &["sample", "enabled"]),
+        ]);
         // Hash: the metrics settings count, a step's `metrics = false` is the default.
         let a = parse("[[step]]\nkind = \"normals\"\n").unwrap();
         let b = parse("[[step]]\nkind = \"normals\"\nmetrics = false\n").unwrap();
@@ -714,14 +722,11 @@ mod tests {
         let c = parse("[preview]\nsize = 256\nview = \"+y\"\n").unwrap();
         assert_eq!(c.preview.up_axis(), crate::preview::camera::Axis::PosZ);
         assert_ne!(c.hash(), parse("").unwrap().hash());
-        let e = parse("[preview]\nview = \"front\"\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("-z") && e.contains("+x"), "{e}");
-        let e = parse("[preview]\nsize = 8\n").unwrap_err().to_string();
-        assert!(e.contains("[preview]") && e.contains("size"), "{e}");
-        let e = parse("[preview]\nsise = 8\n").unwrap_err().to_string();
-        assert!(e.contains("supersample"), "{e}");
+        assert_refused(&[
+            ("[preview]\nview = \"front\"\n", &["-z", "+x"]),
+            ("[preview]\nsize = 8\n", &["[preview]", "size"]),
+            ("[preview]\nsise = 8\n", &["supersample"]),
+        ]);
     }
 
     /// Recipes keep the hash they had before the boundary vocabulary and the
@@ -749,133 +754,99 @@ mod tests {
         }
     }
 
-    /// The renamed spellings give the hashes the old ones had (computed by the code before
-    /// the rename, for the old spelling).
+    /// The renamed spellings of `smooth` give the hashes the old ones had (computed by the
+    /// code before the rename, for the old spelling).
     #[test]
-    fn renamed_spellings_keep_the_hash() {
-        let step = |kind: &str, rest: &str| format!("[[step]]\nkind = \"{kind}\"\n{rest}");
-        let smooth_curve = "5342e9c737c026fa4bd522a8cff465661b5ac94c78e98ca0080d858f670f7efb";
-        let decimate_free = "98d6a664e712fa193b62d49a504ef2e28ee5620e5a1664a13be44d24762b4d57";
-        let fixed_fairing = "acfe67c37878290113b53d3e255ee23738a925cc011e0a7e6fbb7fd21b626f91";
-        let relax_fair = |b: &str| step("relax", b) + &step("fair", b);
-        let experimental = "87262fdcd14afdd7c682e3a2f7d151cdea38be1b1ce4c67a09c31394b53a49b1";
-        for (text, hash) in [
+    fn renamed_smooth_spellings_keep_the_hash() {
+        let smooth = |rest| step("smooth", rest);
+        let curve = "5342e9c737c026fa4bd522a8cff465661b5ac94c78e98ca0080d858f670f7efb";
+        assert_hashes(&[
+            (smooth("method = \"taubin\"\nboundary = \"free\"\n"), curve),
+            (smooth("method = \"taubin\"\nboundary = \"curve\"\n"), curve),
             (
-                step("smooth", "method = \"taubin\"\nboundary = \"free\"\n"),
-                smooth_curve,
-            ),
-            (
-                step("smooth", "method = \"taubin\"\nboundary = \"curve\"\n"),
-                smooth_curve,
-            ),
-            (
-                step("smooth", "method = \"laplace\"\n"),
+                smooth("method = \"laplace\"\n"),
                 "7e43546fbb8c12968d9c60b2e82d0710934e2592e5c9d02c2238a27a860565c5",
             ),
             (
-                step("smooth", "method = \"hc\"\n"),
+                smooth("method = \"hc\"\n"),
                 "0b315dc7d9b4c84c19023535384a407c9b674e4fcad7c799873c601bbbd2e8bf",
             ),
             (
-                step(
-                    "smooth",
-                    "method = \"bilateral\"\nboundary = \"fixed\"\nunits = \"absolute\"\n",
-                ),
+                smooth("method = \"bilateral\"\nboundary = \"fixed\"\nunits = \"absolute\"\n"),
                 "d498582e0c2117629be0d73af8cdbf5f84e98027d7042d0af59190c323328a6b",
             ),
             (
-                step(
-                    "smooth",
-                    "method = \"normal-filter\"\nboundary = \"curve\"\n",
-                ),
+                smooth("method = \"normal-filter\"\nboundary = \"curve\"\n"),
                 "cde570d86c5a8e7b6ed8f34ce50f0503eb7c76c0627f13c36184bcc682f62f37",
             ),
+        ]);
+    }
+
+    /// The same for `decimate`, and for its switches moved to `[experimental.decimate]`.
+    #[test]
+    fn renamed_decimate_spellings_keep_the_hash() {
+        let decimate = |rest| step("decimate", &format!("target_faces = 1000\n{rest}"));
+        let free = "98d6a664e712fa193b62d49a504ef2e28ee5620e5a1664a13be44d24762b4d57";
+        assert_hashes(&[
+            (decimate("boundary = \"free\"\n"), free),
+            (decimate("boundary = \"like-interior\"\n"), free),
             (
-                step("decimate", "target_faces = 1000\nboundary = \"free\"\n"),
-                decimate_free,
-            ),
-            (
-                step(
-                    "decimate",
-                    "target_faces = 1000\nboundary = \"like-interior\"\n",
-                ),
-                decimate_free,
-            ),
-            (
-                step("decimate", "target_faces = 1000\nboundary = \"weighted\"\n"),
+                decimate("boundary = \"weighted\"\n"),
                 "f49aff631dc0ba17dec2e5aae18ddafadf39d7282bf7c378faf3fe9e50f14098",
             ),
             (
                 "[experimental.decimate]\nconditioning = \"thesis-literal\"\nguards = false\n"
                     .to_string()
-                    + &step(
-                        "decimate",
-                        "target_faces = 1000\nmethod = \"face-collapse\"\n",
-                    ),
-                experimental,
+                    + &decimate("method = \"face-collapse\"\n"),
+                "87262fdcd14afdd7c682e3a2f7d151cdea38be1b1ce4c67a09c31394b53a49b1",
             ),
-            (relax_fair("boundary = \"fixed\"\n"), fixed_fairing),
-        ] {
-            assert_eq!(parse(&text).unwrap().hash(), hash, "{text}");
-        }
-        // The new names mean what the old ones did.
+        ]);
+        // The new name means what the old one did.
+        let keep = parse(&decimate("boundary = \"keep\"\n")).unwrap();
+        let fixed = parse(&decimate("boundary = \"fixed\"\n")).unwrap();
+        assert_eq!(keep.hash(), fixed.hash());
+    }
+
+    /// The same for `relax` and `fair`, whose `fixed` border is not their `curve` one.
+    #[test]
+    fn renamed_fairing_spellings_keep_the_hash() {
+        let relax_fair = |b| step("relax", b) + &step("fair", b);
+        let fixed = "acfe67c37878290113b53d3e255ee23738a925cc011e0a7e6fbb7fd21b626f91";
+        assert_hashes(&[(relax_fair("boundary = \"fixed\"\n"), fixed)]);
         assert_ne!(
             parse(&relax_fair("boundary = \"curve\"\n")).unwrap().hash(),
-            fixed_fairing
+            fixed
         );
-        let keep = parse(&step(
-            "decimate",
-            "target_faces = 1000\nboundary = \"keep\"\n",
-        ))
-        .unwrap();
-        let fixed = parse(&step(
-            "decimate",
-            "target_faces = 1000\nboundary = \"fixed\"\n",
-        ))
-        .unwrap();
-        assert_eq!(keep.hash(), fixed.hash());
     }
 
     #[test]
     fn research_switches_are_refused_in_the_step_and_say_where_they_moved() {
         for key in ["conditioning = \"thesis-literal\"", "guards = false"] {
-            let e = parse(&format!(
-                "[[step]]\nkind = \"decimate\"\ntarget_faces = 10\n{key}\n"
-            ))
-            .unwrap_err()
-            .to_string();
-            assert!(
-                e.contains("line 4") && e.contains("[experimental.decimate]"),
-                "{e}"
-            );
+            let text = step("decimate", &format!("target_faces = 10\n{key}\n"));
+            assert_refused(&[(&text, &["line 4", "[experimental.decimate]"])]);
         }
         let r = parse("[experimental.decimate]\nguards = false\n[[step]]\nkind = \"decimate\"\ntarget_faces = 10\n").unwrap();
         match &r.steps[0] {
             Step::Decimate(p) => assert!(!p.guards),
             other => panic!("{other:?}"),
         }
-        let e = parse("[experimental.decimate]\nguard = false\n")
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("guard") && e.contains("conditioning"), "{e}");
+        assert_refused(&[(
+            "[experimental.decimate]\nguard = false\n",
+            &["guard", "conditioning"],
+        )]);
     }
 
     #[test]
     fn a_border_mode_of_another_step_is_refused_with_this_steps_choices() {
-        let e =
-            parse("\n[[step]]\nkind = \"smooth\"\nmethod = \"taubin\"\nboundary = \"weighted\"\n")
-                .unwrap_err()
-                .to_string();
-        assert!(
-            e.contains("line 5") && e.contains("`curve` (or `free`)"),
-            "{e}"
-        );
-        let e = parse("[[step]]\nkind = \"fair\"\nboundary = \"keep\"\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("`curve` (or `fair`)") && e.contains("`fixed`"),
-            "{e}"
-        );
+        assert_refused(&[
+            (
+                "\n[[step]]\nkind = \"smooth\"\nmethod = \"taubin\"\nboundary = \"weighted\"\n",
+                &["line 5", "`curve` (or `free`)"],
+            ),
+            (
+                "[[step]]\nkind = \"fair\"\nboundary = \"keep\"\n",
+                &["`curve` (or `fair`)", "`fixed`"],
+            ),
+        ]);
     }
 }

@@ -14,38 +14,24 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// `[store]` in the daemon configuration: absent (or no `url`), SQLite in `state_dir`;
-/// `url = "postgres://…"`, the queue shared with other hosts (docs/scale-out.md).
+/// `url = "postgres://…"`, the queue shared with other hosts (docs/scale-out.md). A missing
+/// key takes its value from [`StoreConfig::default`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct StoreConfig {
     /// `postgres://user@host:port/database` (a Unix socket: `postgres://user@%2Frun%2Fpostgresql/db`
     /// or `?host=/run/postgresql`). No password here in production: see `password_file`.
-    #[serde(default)]
     pub url: Option<String>,
     /// A file whose first line is the password (else `$PGPASSWORD`, else `~/.pgpass`).
-    #[serde(default)]
     pub password_file: Option<PathBuf>,
     /// A claimed job's lease; the daemon renews it every third of this while the job runs.
     /// Another host takes the job over once it passed without renewal.
-    #[serde(default = "default_lease_secs")]
     pub lease_secs: f64,
     /// How often each host looks for jobs whose lease passed.
-    #[serde(default = "default_rescue_secs")]
     pub rescue_secs: f64,
     /// At start-up, how long an unreachable server is retried before the daemon gives up
     /// (exit 69; systemd starts it again).
-    #[serde(default = "default_connect_patience_secs")]
     pub connect_patience_secs: f64,
-}
-
-fn default_lease_secs() -> f64 {
-    30.0
-}
-fn default_rescue_secs() -> f64 {
-    10.0
-}
-fn default_connect_patience_secs() -> f64 {
-    60.0
 }
 
 impl Default for StoreConfig {
@@ -53,9 +39,9 @@ impl Default for StoreConfig {
         StoreConfig {
             url: None,
             password_file: None,
-            lease_secs: default_lease_secs(),
-            rescue_secs: default_rescue_secs(),
-            connect_patience_secs: default_connect_patience_secs(),
+            lease_secs: 30.0,
+            rescue_secs: 10.0,
+            connect_patience_secs: 60.0,
         }
     }
 }
@@ -112,6 +98,37 @@ pub enum Queue {
     Postgres(Box<PgStore>),
 }
 
+/// Methods both backends have, with the same name and signature: each passes its
+/// arguments on to the backend at hand.
+macro_rules! on_either_backend {
+    ($(pub fn $name:ident(&mut self $(, $arg:ident: $ty:ty)* $(,)?) -> $ret:ty;)*) => {
+        impl Queue {
+            $(
+                pub fn $name(&mut self $(, $arg: $ty)*) -> $ret {
+                    match self {
+                        Queue::Sqlite(s) => s.$name($($arg),*),
+                        Queue::Postgres(p) => p.$name($($arg),*),
+                    }
+                }
+            )*
+        }
+    };
+}
+
+on_either_backend! {
+    pub fn known_inputs(&mut self) -> Result<Vec<KnownSet>>;
+    pub fn counts(&mut self) -> Result<(i64, i64)>;
+    pub fn next_run_after(&mut self) -> Result<Option<i64>>;
+    pub fn enqueue(&mut self, job: &NewJob) -> Result<Enqueued>;
+    pub fn set_waiting(&mut self, root: &str, rel_path: &RelPath, reason: &str, first_seen: i64) -> Result<()>;
+    pub fn clear_waiting(&mut self, root: &str, rel_path: &RelPath) -> Result<()>;
+    pub fn claim(&mut self, owner: &Owner) -> Result<Option<ClaimedJob>>;
+    pub fn finish(&mut self, job: &ClaimedJob, outcome: &Finish, retry: RetryPolicy, wall_ms: f64) -> Result<FinalState>;
+    pub fn history(&mut self, f: &HistoryFilter) -> Result<Vec<HistoryRow>>;
+    pub fn show(&mut self, id: i64) -> Result<serde_json::Value>;
+    pub fn requeue(&mut self, id: i64) -> Result<String>;
+}
+
 impl Queue {
     /// The daemon's store: SQLite at `sqlite_path`, or the `[store]` server (connected,
     /// retried for `connect_patience_secs`, migrated).
@@ -161,78 +178,10 @@ impl Queue {
         }
     }
 
-    pub fn known_inputs(&mut self) -> Result<Vec<KnownSet>> {
-        match self {
-            Queue::Sqlite(s) => s.known_inputs(),
-            Queue::Postgres(p) => p.known_inputs(),
-        }
-    }
-
-    pub fn counts(&mut self) -> Result<(i64, i64)> {
-        match self {
-            Queue::Sqlite(s) => s.counts(),
-            Queue::Postgres(p) => p.counts(),
-        }
-    }
-
     pub fn data_version(&mut self) -> Result<i64> {
         match self {
             Queue::Sqlite(s) => s.data_version(),
             Queue::Postgres(p) => Ok(p.data_version()),
-        }
-    }
-
-    pub fn next_run_after(&mut self) -> Result<Option<i64>> {
-        match self {
-            Queue::Sqlite(s) => s.next_run_after(),
-            Queue::Postgres(p) => p.next_run_after(),
-        }
-    }
-
-    pub fn enqueue(&mut self, job: &NewJob) -> Result<Enqueued> {
-        match self {
-            Queue::Sqlite(s) => s.enqueue(job),
-            Queue::Postgres(p) => p.enqueue(job),
-        }
-    }
-
-    pub fn set_waiting(
-        &mut self,
-        root: &str,
-        rel_path: &RelPath,
-        reason: &str,
-        first_seen: i64,
-    ) -> Result<()> {
-        match self {
-            Queue::Sqlite(s) => s.set_waiting(root, rel_path, reason, first_seen),
-            Queue::Postgres(p) => p.set_waiting(root, rel_path, reason, first_seen),
-        }
-    }
-
-    pub fn clear_waiting(&mut self, root: &str, rel_path: &RelPath) -> Result<()> {
-        match self {
-            Queue::Sqlite(s) => s.clear_waiting(root, rel_path),
-            Queue::Postgres(p) => p.clear_waiting(root, rel_path),
-        }
-    }
-
-    pub fn claim(&mut self, owner: &Owner) -> Result<Option<ClaimedJob>> {
-        match self {
-            Queue::Sqlite(s) => s.claim(owner),
-            Queue::Postgres(p) => p.claim(owner),
-        }
-    }
-
-    pub fn finish(
-        &mut self,
-        job: &ClaimedJob,
-        outcome: &Finish,
-        retry: RetryPolicy,
-        wall_ms: f64,
-    ) -> Result<FinalState> {
-        match self {
-            Queue::Sqlite(s) => s.finish(job, outcome, retry, wall_ms),
-            Queue::Postgres(p) => p.finish(job, outcome, retry, wall_ms),
         }
     }
 
@@ -289,27 +238,6 @@ impl Queue {
                 };
                 scratch.parse_since(text, now_ms)
             }
-        }
-    }
-
-    pub fn history(&mut self, f: &HistoryFilter) -> Result<Vec<HistoryRow>> {
-        match self {
-            Queue::Sqlite(s) => s.history(f),
-            Queue::Postgres(p) => p.history(f),
-        }
-    }
-
-    pub fn show(&mut self, id: i64) -> Result<serde_json::Value> {
-        match self {
-            Queue::Sqlite(s) => s.show(id),
-            Queue::Postgres(p) => p.show(id),
-        }
-    }
-
-    pub fn requeue(&mut self, id: i64) -> Result<String> {
-        match self {
-            Queue::Sqlite(s) => s.requeue(id),
-            Queue::Postgres(p) => p.requeue(id),
         }
     }
 }

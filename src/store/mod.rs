@@ -142,9 +142,11 @@ pub struct InputMember {
     pub sha256: String,
 }
 
-/// What the reconciler hands the store for a ready scan.
+/// What a job is asked to do, the same when it is queued and when it is claimed: the scan
+/// (its input set's hash, its watched folder and path there), the recipe, where the result
+/// goes, and the key these make.
 #[derive(Debug, Clone)]
-pub struct NewJob {
+pub struct JobOrder {
     pub job_key: String,
     pub set_hash: String,
     pub root: String,
@@ -152,6 +154,12 @@ pub struct NewJob {
     pub output_root: String,
     pub recipe_path: String,
     pub recipe_hash: String,
+}
+
+/// What the reconciler hands the store for a ready scan.
+#[derive(Debug, Clone)]
+pub struct NewJob {
+    pub order: JobOrder,
     pub recipe_json: String,
     pub config_hash: String,
     pub max_attempts: u32,
@@ -173,13 +181,7 @@ pub enum Enqueued {
 #[derive(Debug, Clone)]
 pub struct ClaimedJob {
     pub id: i64,
-    pub job_key: String,
-    pub set_hash: String,
-    pub root: String,
-    pub rel_path: RelPath,
-    pub output_root: String,
-    pub recipe_path: String,
-    pub recipe_hash: String,
+    pub order: JobOrder,
     pub generation: i64,
     /// Counted attempt number, from 1.
     pub attempt: u32,
@@ -332,20 +334,22 @@ pub struct Store {
     path: PathBuf,
 }
 
+/// Turns a SQLite error into one that names the database file `path`.
+fn sqlite_error(path: &Path) -> impl Fn(rusqlite::Error) -> StoreError + Copy + '_ {
+    move |source| StoreError::Sqlite {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
 impl Store {
     fn err(&self, source: rusqlite::Error) -> StoreError {
-        StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        }
+        sqlite_error(&self.path)(source)
     }
 
     /// Opens (creating if needed) and migrates the database: the daemon's connection.
     pub fn open(path: &Path) -> Result<Store> {
-        let sq = |source| StoreError::Sqlite {
-            path: path.to_path_buf(),
-            source,
-        };
+        let sq = sqlite_error(path);
         let conn = Connection::open(path).map_err(sq)?;
         // journal_mode persists in the file; set outside any migration.
         conn.pragma_update(None, "journal_mode", "WAL")
@@ -439,10 +443,7 @@ impl Store {
         }
         for version in current + 1..=schema::LATEST {
             let path = self.path.clone();
-            let sq = |source| StoreError::Sqlite {
-                path: path.clone(),
-                source,
-            };
+            let sq = sqlite_error(&path);
             let tx = self
                 .conn
                 .transaction_with_behavior(TransactionBehavior::Immediate)
@@ -474,15 +475,12 @@ impl Store {
     pub fn enqueue(&mut self, job: &NewJob) -> Result<Enqueued> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         let existing: Option<(i64, String, Option<String>)> = tx
             .query_row(
                 "SELECT id, state, error_kind FROM job WHERE job_key = ?1",
-                [&job.job_key],
+                [&job.order.job_key],
                 |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
             )
             .optional()
@@ -499,7 +497,7 @@ impl Store {
                 tx.execute(
                     "UPDATE job SET state='queued', retryable=0, attempts=0, run_after=?2, updated_at=?2,
                         root=?3, rel_path=?4, error_kind=NULL, error=NULL WHERE id=?1",
-                    params![id, now, job.root, job.rel_path],
+                    params![id, now, job.order.root, job.order.rel_path],
                 )
                 .map_err(sq)?;
                 tx.execute("DELETE FROM job_input WHERE job_id=?1", [id])
@@ -515,13 +513,13 @@ impl Store {
                         created_at, updated_at)
                      VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued', ?10, ?11, ?11, ?11)",
                     params![
-                        job.job_key,
-                        job.set_hash,
-                        job.root,
-                        job.rel_path,
-                        job.output_root,
-                        job.recipe_path,
-                        job.recipe_hash,
+                        job.order.job_key,
+                        job.order.set_hash,
+                        job.order.root,
+                        job.order.rel_path,
+                        job.order.output_root,
+                        job.order.recipe_path,
+                        job.order.recipe_hash,
                         job.recipe_json,
                         job.config_hash,
                         job.max_attempts,
@@ -539,12 +537,12 @@ impl Store {
         };
         tx.execute(
             "INSERT OR IGNORE INTO sighting(job_id, root, rel_path, seen_at) VALUES (?1, ?2, ?3, ?4)",
-            params![id, job.root, job.rel_path, now],
+            params![id, job.order.root, job.order.rel_path, now],
         )
         .map_err(sq)?;
         tx.execute(
             "DELETE FROM waiting WHERE root=?1 AND rel_path=?2",
-            params![job.root, job.rel_path],
+            params![job.order.root, job.order.rel_path],
         )
         .map_err(sq)?;
         tx.commit().map_err(sq)?;
@@ -556,10 +554,7 @@ impl Store {
     pub fn claim(&mut self, owner: &Owner) -> Result<Option<ClaimedJob>> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         // A cheap read first, so that an idle daemon takes no write lock every second.
         let any: Option<i64> = self
             .conn
@@ -587,13 +582,15 @@ impl Store {
                 |r| {
                     Ok(ClaimedJob {
                         id: r.get(0)?,
-                        job_key: r.get(1)?,
-                        set_hash: r.get(2)?,
-                        root: r.get(3)?,
-                        rel_path: r.get(4)?,
-                        output_root: r.get(5)?,
-                        recipe_path: r.get(6)?,
-                        recipe_hash: r.get(7)?,
+                        order: JobOrder {
+                            job_key: r.get(1)?,
+                            set_hash: r.get(2)?,
+                            root: r.get(3)?,
+                            rel_path: r.get(4)?,
+                            output_root: r.get(5)?,
+                            recipe_path: r.get(6)?,
+                            recipe_hash: r.get(7)?,
+                        },
                         generation: r.get(8)?,
                         attempt: r.get(9)?,
                         max_attempts: r.get(10)?,
@@ -628,10 +625,7 @@ impl Store {
     ) -> Result<FinalState> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         let final_state = match outcome {
             Finish::Done {
@@ -691,10 +685,7 @@ impl Store {
     pub fn recover_running(&mut self) -> Result<usize> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         tx.execute(
             "UPDATE attempt SET finished_at=?1, outcome='interrupted', error_kind=?2,
@@ -728,10 +719,7 @@ impl Store {
     pub fn requeue(&mut self, id: i64) -> Result<String> {
         let now = now_ms();
         let path = self.path.clone();
-        let sq = |source| StoreError::Sqlite {
-            path: path.clone(),
-            source,
-        };
+        let sq = sqlite_error(&path);
         let tx = self.immediate()?;
         let state: Option<String> = tx
             .query_row("SELECT state FROM job WHERE id=?1", [id], |r| r.get(0))
@@ -804,10 +792,7 @@ impl Store {
     /// Online backup into `dest` (the daemon may keep writing meanwhile), then an
     /// integrity check of the copy.
     pub fn backup(&self, dest: &Path) -> Result<()> {
-        let sq = |source| StoreError::Sqlite {
-            path: dest.to_path_buf(),
-            source,
-        };
+        let sq = sqlite_error(dest);
         self.conn
             .backup(rusqlite::MAIN_DB, dest, None)
             .map_err(sq)?;
@@ -1001,10 +986,7 @@ impl Store {
     /// Every job's input signatures, keyed by (root, mesh rel_path), newest job last, so
     /// that the reconciler need not hash again at start-up what it already recorded.
     pub fn known_inputs(&self) -> Result<Vec<KnownSet>> {
-        let err = |source| StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        };
+        let err = sqlite_error(&self.path);
         let mut stmt = self
             .conn
             .prepare(

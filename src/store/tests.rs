@@ -11,13 +11,15 @@ fn owner() -> Owner {
 
 fn job(key: &str, rel: &str) -> NewJob {
     NewJob {
-        job_key: key.into(),
-        set_hash: format!("set-{key}"),
-        root: "/in".into(),
-        rel_path: rel.into(),
-        output_root: "/out".into(),
-        recipe_path: "r.toml".into(),
-        recipe_hash: "rh".into(),
+        order: JobOrder {
+            job_key: key.into(),
+            set_hash: format!("set-{key}"),
+            root: "/in".into(),
+            rel_path: rel.into(),
+            output_root: "/out".into(),
+            recipe_path: "r.toml".into(),
+            recipe_hash: "rh".into(),
+        },
         recipe_json: "{}".into(),
         config_hash: "ch".into(),
         max_attempts: 2,
@@ -36,6 +38,14 @@ fn open() -> (tempfile::TempDir, Store) {
     let dir = tempfile::tempdir().unwrap();
     let store = Store::open(&dir.path().join("db.sqlite")).unwrap();
     (dir, store)
+}
+
+/// A fresh store with one job (`a.ply`), claimed.
+fn open_with_one_claimed() -> (tempfile::TempDir, Store, ClaimedJob) {
+    let (dir, mut store) = open();
+    store.enqueue(&job("k1", "a.ply")).unwrap();
+    let claimed = store.claim(&owner()).unwrap().unwrap();
+    (dir, store, claimed)
 }
 
 fn failed(transient: bool) -> Finish {
@@ -153,9 +163,7 @@ fn same_key_never_makes_two_jobs_and_records_sightings() {
 
 #[test]
 fn claim_finish_done_records_everything() {
-    let (_d, mut s) = open();
-    s.enqueue(&job("k1", "a.ply")).unwrap();
-    let c = s.claim(&owner()).unwrap().unwrap();
+    let (_d, mut s, c) = open_with_one_claimed();
     assert_eq!(c.attempt, 1);
     assert_eq!(c.inputs.len(), 1);
     assert!(s.claim(&owner()).unwrap().is_none(), "only one job");
@@ -201,9 +209,7 @@ fn claim_finish_done_records_everything() {
 
 #[test]
 fn transient_failures_back_off_then_quarantine_permanent_fail_at_once() {
-    let (_d, mut s) = open();
-    s.enqueue(&job("k1", "a.ply")).unwrap();
-    let c = s.claim(&owner()).unwrap().unwrap();
+    let (_d, mut s, c) = open_with_one_claimed();
     assert_eq!(
         s.finish(&c, &failed(true), retry(3600.0, 3600.0), 1.0)
             .unwrap(),
@@ -238,9 +244,7 @@ fn transient_failures_back_off_then_quarantine_permanent_fail_at_once() {
 
 #[test]
 fn recover_running_counts_the_attempt_and_quarantines_at_the_limit() {
-    let (_d, mut s) = open();
-    s.enqueue(&job("k1", "a.ply")).unwrap();
-    let c = s.claim(&owner()).unwrap().unwrap();
+    let (_d, mut s, c) = open_with_one_claimed();
     assert_eq!(c.attempt, 1);
     // The daemon died while the job ran (no finish): recovery keeps the attempt counted.
     assert_eq!(s.recover_running().unwrap(), 1);
@@ -258,9 +262,7 @@ fn recover_running_counts_the_attempt_and_quarantines_at_the_limit() {
 
 #[test]
 fn a_graceful_interruption_is_not_counted() {
-    let (_d, mut s) = open();
-    s.enqueue(&job("k1", "a.ply")).unwrap();
-    let c = s.claim(&owner()).unwrap().unwrap();
+    let (_d, mut s, c) = open_with_one_claimed();
     let f = Finish::Interrupted {
         reason: "daemon stopped before the job finished".into(),
     };
@@ -277,9 +279,7 @@ fn a_graceful_interruption_is_not_counted() {
 
 #[test]
 fn requeue_bumps_generation_and_refuses_running() {
-    let (_d, mut s) = open();
-    s.enqueue(&job("k1", "a.ply")).unwrap();
-    let c = s.claim(&owner()).unwrap().unwrap();
+    let (_d, mut s, c) = open_with_one_claimed();
     assert!(matches!(
         s.requeue(c.id),
         Err(StoreError::WrongState { .. })
@@ -293,9 +293,7 @@ fn requeue_bumps_generation_and_refuses_running() {
 
 #[test]
 fn vanished_input_job_is_revived_when_input_returns() {
-    let (_d, mut s) = open();
-    s.enqueue(&job("k1", "a.ply")).unwrap();
-    let c = s.claim(&owner()).unwrap().unwrap();
+    let (_d, mut s, c) = open_with_one_claimed();
     let gone = Finish::Failed {
         kind: FailureKind::InputVanished,
         message: "gone".into(),
@@ -307,7 +305,7 @@ fn vanished_input_job_is_revived_when_input_returns() {
         Enqueued::Revived(1)
     );
     let c = s.claim(&owner()).unwrap().unwrap();
-    assert_eq!(c.rel_path, "back.ply");
+    assert_eq!(c.order.rel_path, "back.ply");
 }
 
 #[test]
@@ -372,9 +370,7 @@ fn backoff_doubles_and_caps() {
 
 #[test]
 fn a_huge_failure_message_is_cut_when_recorded() {
-    let (_d, mut s) = open();
-    s.enqueue(&job("k1", "a.ply")).unwrap();
-    let c = s.claim(&owner()).unwrap().unwrap();
+    let (_d, mut s, c) = open_with_one_claimed();
     let f = Finish::Failed {
         kind: FailureKind::Input,
         message: "é".repeat(100_000),

@@ -932,43 +932,23 @@ mod tests {
 
     #[test]
     fn bad_indices_name_the_line_and_value() {
-        let e = geometry(&format!("{QUAD}f 1 2 3\nf 1 0 3\n")).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                MeshError::IndexOutOfRange {
-                    index: 0,
-                    kind: "vertex",
-                    ..
-                }
-            ),
-            "{e}"
-        );
-        assert_eq!(line_of(&e), Some(9));
-        let e = geometry(&format!("{QUAD}f 1 2 -5\n")).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                MeshError::IndexOutOfRange {
-                    index: -5,
-                    count: 4,
-                    ..
-                }
-            ),
-            "{e}"
-        );
-        let e = geometry(&format!("{QUAD}f 1/3 2 3\n")).unwrap_err();
-        assert!(
-            matches!(
-                e,
-                MeshError::IndexOutOfRange {
-                    index: 3,
-                    kind: "texture coordinate",
-                    ..
-                }
-            ),
-            "{e}"
-        );
+        // (faces, the index refused, of what, how many there are, on which line)
+        for (faces, bad, what, there_are, line) in [
+            ("f 1 2 3\nf 1 0 3\n", 0, "vertex", 4, 9),
+            ("f 1 2 -5\n", -5, "vertex", 4, 8),
+            ("f 1/3 2 3\n", 3, "texture coordinate", 2, 8),
+        ] {
+            let e = geometry(&format!("{QUAD}{faces}")).unwrap_err();
+            assert!(
+                matches!(
+                    e,
+                    MeshError::IndexOutOfRange { index, kind, count, .. }
+                        if index == bad && kind == what && count == there_are
+                ),
+                "{faces}: {e}"
+            );
+            assert_eq!(line_of(&e), Some(line), "{faces}");
+        }
         let e = geometry(&format!("{QUAD}f 1 2 99999999999999999999\n")).unwrap_err();
         assert!(matches!(e, MeshError::Malformed { .. }), "{e}");
     }

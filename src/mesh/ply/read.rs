@@ -583,11 +583,7 @@ fn read_strips<S: Source>(
     nv: usize,
 ) -> Result<()> {
     require_integer_list(path, element, "vertex_indices")?;
-    for p in &element.properties {
-        if p.name != "vertex_indices" {
-            raw.skipped.push(format!("tristrips.{}", p.name));
-        }
-    }
+    note_unread(raw, element, &["vertex_indices"]);
     // Sorted vertices → (index in strip_triangles, further copies).
     let mut seen: rustc_hash::FxHashMap<[Index; 3], (Index, u32)> = Default::default();
     let first = raw.strip_triangles.len();
@@ -644,6 +640,15 @@ fn read_strips<S: Source>(
     Ok(())
 }
 
+/// Records the properties of `element` other than `read` as skipped (`element.property`).
+fn note_unread(raw: &mut Raw, element: &Element, read: &[&str]) {
+    for p in &element.properties {
+        if !read.contains(&p.name.as_str()) {
+            raw.skipped.push(format!("{}.{}", element.name, p.name));
+        }
+    }
+}
+
 fn read_multi_vertices<S: Source>(
     path: &Path,
     element: &Element,
@@ -657,11 +662,7 @@ fn read_multi_vertices<S: Source>(
             "element multi_texture_vertex has no u and v properties",
         ));
     };
-    for p in &element.properties {
-        if !matches!(p.name.as_str(), "u" | "v" | "tx") {
-            raw.skipped.push(format!("multi_texture_vertex.{}", p.name));
-        }
-    }
+    note_unread(raw, element, &["u", "v", "tx"]);
     raw.multi_uvs.reserve(capacity(src, element, &[]));
     for_each(path, element, src, |src, _| {
         let mut uv = DVec2::ZERO;
@@ -690,11 +691,7 @@ fn read_multi_faces<S: Source>(
     raw: &mut Raw,
 ) -> Result<()> {
     require_integer_list(path, element, "texture_vertex_indices")?;
-    for p in &element.properties {
-        if !matches!(p.name.as_str(), "tx" | "tn" | "texture_vertex_indices") {
-            raw.skipped.push(format!("multi_texture_face.{}", p.name));
-        }
-    }
+    note_unread(raw, element, &["tx", "tn", "texture_vertex_indices"]);
     let texture_vertices = raw.multi_uvs.len();
     for_each(path, element, src, |src, i| {
         let (mut tx, mut tn) = (0.0, i as f64);

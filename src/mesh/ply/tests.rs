@@ -3,7 +3,8 @@
 use super::*;
 use crate::mesh::{LoadOptions, LoadReport, Location, Mesh, MeshError};
 use glam::{DVec2, DVec3};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use tempfile::TempDir;
 
 fn load(bytes: &[u8]) -> Result<(Mesh, LoadReport), MeshError> {
     read(Path::new("test.ply"), bytes, &LoadOptions::default())
@@ -357,15 +358,33 @@ fn point_clouds_say_there_is_no_face_element() {
     );
 }
 
-#[test]
-fn bad_files_give_located_errors() {
-    assert!(load_err(b"").contains("not a PLY file"));
-    assert!(load_err(b"\x00\x01garbage\xff").contains("not a PLY file"));
-    assert!(
-        load_err(b"ply\nformat binary_middle_endian 1.0\nend_header\n").contains("unknown format")
-    );
+/// Each file is refused with a message that contains its snippet.
+fn assert_refused<T: AsRef<[u8]>>(cases: &[(T, &str)]) {
+    for (bytes, says) in cases {
+        let e = load_err(bytes.as_ref());
+        assert!(
+            e.contains(says),
+            "{}: {e}",
+            String::from_utf8_lossy(bytes.as_ref())
+        );
+    }
+}
 
-    // Truncated binary: the second triangle is cut.
+#[test]
+fn bad_headers_are_refused() {
+    assert_refused(&[
+        (&b""[..], "not a PLY file"),
+        (b"\x00\x01garbage\xff", "not a PLY file"),
+        (
+            b"ply\nformat binary_middle_endian 1.0\nend_header\n",
+            "unknown format",
+        ),
+    ]);
+}
+
+#[test]
+fn truncated_binary_names_the_element_that_was_cut() {
+    // The second triangle is cut.
     let full = binary_square(false);
     let e = load(&full[..full.len() - 2]).unwrap_err();
     assert_eq!(
@@ -379,21 +398,24 @@ fn bad_files_give_located_errors() {
         e.to_string(),
         "test.ply: vertex 1: truncated: expected 4 vertex elements, found 1"
     );
+}
 
-    // Header says more vertices than there are (ASCII).
+#[test]
+fn ascii_element_counts_that_lie_are_located() {
     let lying = SQUARE_ASCII.replace("element vertex 5", "element vertex 6");
-    let e = load_err(lying.as_bytes());
-    assert!(
-        e.contains("line 16: vertex 5: the line has more values than the header declares"),
-        "{e}"
-    );
+    assert_refused(&[(
+        lying,
+        "line 16: vertex 5: the line has more values than the header declares",
+    )]);
     let lying = SQUARE_ASCII.replace("element face 2", "element face 3");
     assert_eq!(
         load_err(lying.as_bytes()),
         "test.ply: line 17: truncated: expected 3 face elements, found 2"
     );
+}
 
-    // NaN, ASCII and binary.
+#[test]
+fn nan_is_located_in_ascii_and_binary() {
     let nan = SQUARE_ASCII.replace("1 1 0\n", "1 nan 0\n");
     let e = load(nan.as_bytes()).unwrap_err();
     assert!(
@@ -414,8 +436,10 @@ fn bad_files_give_located_errors() {
         matches!(&e, MeshError::NonFinite { at: Location::Element { element, index: 0 }, .. } if element == "vertex"),
         "{e}"
     );
+}
 
-    // Indices out of range or negative, faces too small.
+#[test]
+fn indices_out_of_range_or_negative_and_faces_too_small_are_refused() {
     let e = load(SQUARE_ASCII.replace("3 0 4 1", "3 0 5 1").as_bytes()).unwrap_err();
     assert!(
         matches!(
@@ -428,38 +452,32 @@ fn bad_files_give_located_errors() {
         ),
         "{e}"
     );
-    assert!(
-        load_err(SQUARE_ASCII.replace("3 0 4 1", "3 0 -4 1").as_bytes())
-            .contains("index -4 is out of range")
-    );
-    assert!(
-        load_err(SQUARE_ASCII.replace("3 0 4 1", "1 0").as_bytes())
-            .contains("face 1: a face needs at least 3 vertex indices, this one has 1")
-    );
-    assert!(
-        load_err(SQUARE_ASCII.replace("3 0 4 1", "3 0 4 1 9").as_bytes())
-            .contains("more values than the header declares")
-    );
-    assert!(
-        load_err(SQUARE_ASCII.replace("3 0 4 1", "200 0 4 1").as_bytes()).contains("cannot fit")
-    );
+    let face = |f: &str| SQUARE_ASCII.replace("3 0 4 1", f);
+    assert_refused(&[
+        (face("3 0 -4 1"), "index -4 is out of range"),
+        (
+            face("1 0"),
+            "face 1: a face needs at least 3 vertex indices, this one has 1",
+        ),
+        (face("3 0 4 1 9"), "more values than the header declares"),
+        (face("200 0 4 1"), "cannot fit"),
+    ]);
+}
 
-    // An absurd binary list count fails fast, without allocating.
+#[test]
+fn absurd_counts_fail_fast_without_allocating() {
     let mut huge = binary_square(false);
     let at = huge.len() - 5;
     huge[at..at + 2].copy_from_slice(&u16::MAX.to_le_bytes());
-    assert!(
-        load(&huge)
-            .unwrap_err()
-            .to_string()
-            .contains("needs 65535 bytes")
-    );
     let header_only = "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\n\
                        property float y\nproperty float z\nelement face 1\nproperty list uint int vertex_indices\nend_header\n";
-    assert!(
-        load_err(header_only.as_bytes())
-            .contains("truncated: expected 4000000000 vertex elements, found 0")
-    );
+    assert_refused(&[
+        (huge, "needs 65535 bytes"),
+        (
+            header_only.as_bytes().to_vec(),
+            "truncated: expected 4000000000 vertex elements, found 0",
+        ),
+    ]);
 }
 
 #[test]
@@ -563,12 +581,18 @@ fn square_textured(dir: &Path, name: &str) -> Mesh {
     .0
 }
 
-#[test]
-fn writer_copies_present_textures() {
+/// A textured square read from a folder of its own, and `out.ply` in another.
+fn textured_square_and_output(texture: &str) -> (TempDir, Mesh, TempDir, PathBuf) {
     let src = tempfile::tempdir().unwrap();
-    let mesh = square_textured(src.path(), "skin.png");
+    let mesh = square_textured(src.path(), texture);
     let out = tempfile::tempdir().unwrap();
     let path = out.path().join("out.ply");
+    (src, mesh, out, path)
+}
+
+#[test]
+fn writer_copies_present_textures() {
+    let (src, mesh, out, path) = textured_square_and_output("skin.png");
     let written = write(&mesh, &path, PlyEncoding::BinaryLittleEndian).unwrap();
     assert_eq!(written, vec![path.clone(), out.path().join("skin.png")]);
     let (back, _) = read(
@@ -590,10 +614,7 @@ fn writer_copies_present_textures() {
 
 #[test]
 fn writer_keeps_copied_textures_apart_from_reserved_names() {
-    let src = tempfile::tempdir().unwrap();
-    let mesh = square_textured(src.path(), "out.preview.png");
-    let out = tempfile::tempdir().unwrap();
-    let path = out.path().join("out.ply");
+    let (_src, mesh, out, path) = textured_square_and_output("out.preview.png");
     let reserved = ["out.preview.png".to_string()];
     let written = write_reserving(&mesh, &path, PlyEncoding::Ascii, &reserved).unwrap();
     assert_eq!(

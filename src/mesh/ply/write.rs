@@ -83,22 +83,27 @@ impl AsciiSink {
     }
 }
 
+impl AsciiSink {
+    /// One value after its separator: floats in their shortest round-trip form (`{:?}`),
+    /// integers as they are.
+    fn value(&mut self, v: std::fmt::Arguments) {
+        self.sep();
+        let _ = self.out.write_fmt(v);
+    }
+}
+
 impl Sink for AsciiSink {
     fn f64(&mut self, v: f64) {
-        self.sep();
-        let _ = write!(self.out, "{v:?}");
+        self.value(format_args!("{v:?}"));
     }
     fn f32(&mut self, v: f32) {
-        self.sep();
-        let _ = write!(self.out, "{v:?}");
+        self.value(format_args!("{v:?}"));
     }
     fn u8(&mut self, v: u8) {
-        self.sep();
-        let _ = write!(self.out, "{v}");
+        self.value(format_args!("{v}"));
     }
     fn i32(&mut self, v: i32) {
-        self.sep();
-        let _ = write!(self.out, "{v}");
+        self.value(format_args!("{v}"));
     }
     fn end(&mut self) {
         self.out.push('\n');

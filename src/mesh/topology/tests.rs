@@ -68,6 +68,17 @@ fn quad_positions() -> [[f64; 3]; 4] {
     ]
 }
 
+/// The unit square as triangles (0, 1, 2) and (0, 2, 3), with these texture coordinate
+/// (and normal) indices per corner.
+fn quad(texcoords: [[u32; 3]; 2], normals: Option<&[[u32; 3]]>) -> Mesh {
+    mesh_with_attributes(
+        &quad_positions(),
+        &[[0, 1, 2], [0, 2, 3]],
+        Some(&texcoords),
+        normals,
+    )
+}
+
 /// `n × n` vertices on the unit square, two triangles per cell, optionally leaving out
 /// the cells for which `skip(i, j)` holds.
 fn grid(n: u32, skip: impl Fn(u32, u32) -> bool) -> Mesh {
@@ -123,12 +134,7 @@ fn single_triangle() {
 
 #[test]
 fn two_triangles_without_seam() {
-    let m = mesh_with_attributes(
-        &quad_positions(),
-        &[[0, 1, 2], [0, 2, 3]],
-        Some(&[[0, 1, 2], [0, 2, 3]]),
-        None,
-    );
+    let m = quad([[0, 1, 2], [0, 2, 3]], None);
     let topo = m.topology();
     let c = topo.counts();
     assert_eq!((c.edges, c.boundary_edges, c.boundary_loops), (5, 4, 1));
@@ -155,12 +161,7 @@ fn two_triangles_without_seam() {
 #[test]
 fn two_triangles_with_texture_seam() {
     // Triangle 1 uses its own texture coordinates at vertices 0 and 2.
-    let m = mesh_with_attributes(
-        &quad_positions(),
-        &[[0, 1, 2], [0, 2, 3]],
-        Some(&[[0, 1, 2], [4, 5, 3]]),
-        None,
-    );
+    let m = quad([[0, 1, 2], [4, 5, 3]], None);
     let topo = m.topology();
     let c = topo.counts();
     assert_eq!((c.seam_edges, c.texture_seam_edges), (1, 1));
@@ -168,23 +169,13 @@ fn two_triangles_with_texture_seam() {
     assert!(topo.is_texture_seam_edge(topo.find_edge(0, 2).unwrap()));
 
     // Differing at one end only is still a seam.
-    let m = mesh_with_attributes(
-        &quad_positions(),
-        &[[0, 1, 2], [0, 2, 3]],
-        Some(&[[0, 1, 2], [0, 4, 3]]),
-        None,
-    );
+    let m = quad([[0, 1, 2], [0, 4, 3]], None);
     assert_eq!(m.topology().counts().texture_seam_edges, 1);
 }
 
 #[test]
 fn normal_split_is_a_seam_but_not_a_texture_seam() {
-    let m = mesh_with_attributes(
-        &quad_positions(),
-        &[[0, 1, 2], [0, 2, 3]],
-        Some(&[[0, 1, 2], [0, 2, 3]]),
-        Some(&[[0, 0, 0], [1, 1, 1]]),
-    );
+    let m = quad([[0, 1, 2], [0, 2, 3]], Some(&[[0, 0, 0], [1, 1, 1]]));
     let c = m.topology().counts();
     assert_eq!((c.seam_edges, c.texture_seam_edges), (1, 0));
 }
@@ -422,8 +413,19 @@ fn random_grid_patch() -> impl Strategy<Value = Mesh> {
         .prop_map(|keep| grid(7, |i, j| !keep[(j * 6 + i) as usize]))
 }
 
+/// The invariants every mesh's topology keeps, whatever its shape.
 fn check_common(m: &Mesh) -> Result<(), TestCaseError> {
     let topo = m.topology();
+    check_edges(m, &topo)?;
+    check_boundary_chains(&topo)?;
+    check_boundary_loops(&topo)?;
+    check_neighbours_and_components(&topo)?;
+    check_rings(&topo)
+}
+
+/// Every side belongs to one edge; the edges are the triangles' distinct vertex pairs,
+/// sorted; the Euler characteristic counts them.
+fn check_edges(m: &Mesh, topo: &Topology) -> Result<(), TestCaseError> {
     let c = topo.counts();
     let sides: usize = (0..c.edges as u32).map(|e| topo.edge_sides(e).len()).sum();
     prop_assert_eq!(sides, 3 * c.triangles);
@@ -443,8 +445,12 @@ fn check_common(m: &Mesh) -> Result<(), TestCaseError> {
         c.euler_characteristic,
         c.vertices as i64 - unique.len() as i64 + c.triangles as i64
     );
+    Ok(())
+}
 
-    // Every boundary edge is walked exactly once.
+/// Every boundary edge is walked exactly once, by a chain whose consecutive vertices are
+/// its ends.
+fn check_boundary_chains(topo: &Topology) -> Result<(), TestCaseError> {
     let mut walked: Vec<u32> = topo
         .boundary_chains()
         .iter()
@@ -460,9 +466,13 @@ fn check_common(m: &Mesh) -> Result<(), TestCaseError> {
             prop_assert!([p.min(q), p.max(q)] == [a, b]);
         }
     }
+    Ok(())
+}
 
-    // Loops are the connected pieces of the boundary-edge graph; chains sharing a vertex
-    // are in the same loop.
+/// Loops are the connected pieces of the boundary-edge graph; chains sharing a vertex are
+/// in the same loop.
+fn check_boundary_loops(topo: &Topology) -> Result<(), TestCaseError> {
+    let c = topo.counts();
     let mut piece: Vec<usize> = (0..c.vertices).collect();
     fn root(piece: &mut [usize], mut x: usize) -> usize {
         while piece[x] != x {
@@ -490,9 +500,12 @@ fn check_common(m: &Mesh) -> Result<(), TestCaseError> {
             );
         }
     }
+    Ok(())
+}
 
-    // Neighbours are symmetric; triangles sharing a vertex share a component.
-    for v in 0..c.vertices as u32 {
+/// Neighbours are symmetric; triangles sharing a vertex share a component.
+fn check_neighbours_and_components(topo: &Topology) -> Result<(), TestCaseError> {
+    for v in 0..topo.counts().vertices as u32 {
         for &w in topo.vertex_neighbours(v) {
             prop_assert!(topo.vertex_neighbours(w).contains(&v));
         }
@@ -501,9 +514,12 @@ fn check_common(m: &Mesh) -> Result<(), TestCaseError> {
             prop_assert!(comps.all(|x| x == first));
         }
     }
+    Ok(())
+}
 
-    // Rings cover their vertex's triangles, consecutive vertices around each triangle.
-    for v in 0..c.vertices as u32 {
+/// Rings cover their vertex's triangles, consecutive vertices around each triangle.
+fn check_rings(topo: &Topology) -> Result<(), TestCaseError> {
+    for v in 0..topo.counts().vertices as u32 {
         let Some(ring) = topo.ordered_ring(v) else {
             prop_assert!(topo.is_non_manifold_vertex(v) || topo.vertex_corners(v).is_empty());
             continue;

@@ -6,9 +6,8 @@
 //! (c) reads the neighbours' b_j. So HC is always buffered.
 
 use super::laplace::pass_buffered;
-use super::{CHUNK, HcParams, SmoothGraph};
+use super::{HcParams, SmoothGraph, par_for_each_indexed};
 use glam::DVec3;
-use rayon::prelude::*;
 
 /// Returns the number of passes (one per iteration).
 pub(super) fn run(
@@ -31,28 +30,16 @@ pub(super) fn run(
         // (a) p_i = (1−λ) q_i + λ/|adj(i)| Σ q_j
         pass_buffered(graph, w, q, None, params.lambda, &mut p);
         // (b) b_i = p_i − (α o_i + (1−α) q_i)
-        b.par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(chunk, out)| {
-                let first = chunk * CHUNK;
-                for (k, bi) in out.iter_mut().enumerate() {
-                    let i = first + k;
-                    *bi = p[i] - (alpha * original[i] + (1.0 - alpha) * q[i]);
-                }
-            });
+        par_for_each_indexed(&mut b, |i, bi| {
+            *bi = p[i] - (alpha * original[i] + (1.0 - alpha) * q[i]);
+        });
         // (c) p_i ← p_i − (β b_i + (1−β)/|adj(i)| Σ b_j); vertices that do not move
         // (empty rows) are skipped, their b_i is 0 anyway.
-        p.par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(chunk, out)| {
-                let first = chunk * CHUNK;
-                for (k, pi) in out.iter_mut().enumerate() {
-                    let i = first + k;
-                    if let Some(avg_b) = graph.average(w, &b, i) {
-                        *pi -= beta * b[i] + (1.0 - beta) * avg_b;
-                    }
-                }
-            });
+        par_for_each_indexed(&mut p, |i, pi| {
+            if let Some(avg_b) = graph.average(w, &b, i) {
+                *pi -= beta * b[i] + (1.0 - beta) * avg_b;
+            }
+        });
         // (d) q ← p
         std::mem::swap(positions, &mut p);
     }

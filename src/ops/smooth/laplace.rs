@@ -1,9 +1,8 @@
 //! Laplacian smoothing (thesis §3.2), and the umbrella pass the other Laplacian-type
 //! filters (HC, Taubin) are built from.
 
-use super::{CHUNK, LaplaceAnchor, LaplaceParams, SmoothGraph, Update};
+use super::{LaplaceAnchor, LaplaceParams, SmoothGraph, Update, par_for_each_indexed};
 use glam::DVec3;
-use rayon::prelude::*;
 
 /// One buffered pass of Eq. (3.3) / (3.5) / (3.7):
 /// `out_i = (1 − f)·a_i + f·avg_j(q_j)`, with `a = anchor` (the original positions o, Eq. 3.5)
@@ -21,18 +20,12 @@ pub(super) fn pass_buffered(
     out: &mut [DVec3],
 ) {
     let keep = 1.0 - factor;
-    out.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            let first = chunk * CHUNK;
-            for (k, p) in out.iter_mut().enumerate() {
-                let i = first + k;
-                *p = match graph.average(weights, q, i) {
-                    Some(avg) => keep * anchor.map_or(q[i], |o| o[i]) + factor * avg,
-                    None => q[i],
-                };
-            }
-        });
+    par_for_each_indexed(out, |i, p| {
+        *p = match graph.average(weights, q, i) {
+            Some(avg) => keep * anchor.map_or(q[i], |o| o[i]) + factor * avg,
+            None => q[i],
+        };
+    });
 }
 
 /// One in-place (Gauss–Seidel) pass in vertex order: each vertex already sees the moved

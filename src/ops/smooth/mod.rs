@@ -27,6 +27,7 @@ mod taubin;
 
 use crate::mesh::Mesh;
 use glam::DVec3;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 pub use graph::SmoothGraph;
@@ -374,6 +375,15 @@ fn unit_interval(name: &str, v: f64, open_low: bool) -> Result<(), String> {
     })
 }
 
+/// `Params { field: recipe's value, else the default's, ... }` for the named fields, each
+/// an `Option` of the same name in the recipe's [`SmoothParamsFile`].
+macro_rules! recipe_or_default {
+    ($file:expr, $params:ident { $($field:ident),* $(,)? }) => {{
+        let d = $params::default();
+        $params { $($field: $file.$field.unwrap_or(d.$field)),* }
+    }};
+}
+
 impl LaplaceParams {
     /// Table A.2's iteration count.
     const ITERATIONS: u32 = 22;
@@ -381,12 +391,7 @@ impl LaplaceParams {
     /// The method's parameters from the recipe, defaults filled in and checked, with its
     /// default iteration count.
     fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
-        let d = LaplaceParams::default();
-        let p = LaplaceParams {
-            lambda: f.lambda.unwrap_or(d.lambda),
-            anchor: f.anchor.unwrap_or(d.anchor),
-            weights: f.weights.unwrap_or(d.weights),
-        };
+        let p = recipe_or_default! { f, LaplaceParams { lambda, anchor, weights } };
         // §3.2 states λ ∈ (0,1) but uses λ = 1 itself (Eq. 3.4, HC): accept (0,1].
         unit_interval("lambda", p.lambda, true)?;
         Ok((SmoothMethod::Laplace(p), Self::ITERATIONS))
@@ -400,13 +405,7 @@ impl HcParams {
     /// The method's parameters from the recipe, defaults filled in and checked, with its
     /// default iteration count.
     fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
-        let d = HcParams::default();
-        let p = HcParams {
-            lambda: f.lambda.unwrap_or(d.lambda),
-            alpha: f.alpha.unwrap_or(d.alpha),
-            beta: f.beta.unwrap_or(d.beta),
-            weights: f.weights.unwrap_or(d.weights),
-        };
+        let p = recipe_or_default! { f, HcParams { lambda, alpha, beta, weights } };
         unit_interval("lambda", p.lambda, true)?;
         unit_interval("alpha", p.alpha, false)?;
         unit_interval("beta", p.beta, false)?;
@@ -421,13 +420,7 @@ impl TaubinParams {
     /// The method's parameters from the recipe, defaults filled in and checked, with its
     /// default iteration count.
     fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
-        let d = TaubinParams::default();
-        let p = TaubinParams {
-            lambda: f.lambda.unwrap_or(d.lambda),
-            mu: f.mu.unwrap_or(d.mu),
-            count: f.count.unwrap_or(d.count),
-            weights: f.weights.unwrap_or(d.weights),
-        };
+        let p = recipe_or_default! { f, TaubinParams { lambda, mu, count, weights } };
         // §3.4: 0 < λ < −μ. λ ≤ 1 keeps the shrinking pass a convex blend.
         unit_interval("lambda", p.lambda, true)?;
         check(p.mu.is_finite() && p.mu < -p.lambda, || {
@@ -527,6 +520,13 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
     }
 }
 
+/// The other way: sets the recipe's `Option` of each named field to the parameters' value.
+macro_rules! set_in_recipe {
+    ($file:expr, $params:expr, $($field:ident),* $(,)?) => {
+        $($file.$field = Some($params.$field);)*
+    };
+}
+
 impl From<SmoothParams> for SmoothParamsFile {
     fn from(p: SmoothParams) -> Self {
         let mut f = SmoothParamsFile {
@@ -538,31 +538,20 @@ impl From<SmoothParams> for SmoothParamsFile {
         match p.method {
             SmoothMethod::Laplace(l) => {
                 f.method = Some(MethodName::Laplace);
-                f.lambda = Some(l.lambda);
-                f.anchor = Some(l.anchor);
-                f.weights = Some(l.weights);
+                set_in_recipe! { f, l, lambda, anchor, weights }
             }
             SmoothMethod::Hc(h) => {
                 f.method = Some(MethodName::Hc);
-                f.lambda = Some(h.lambda);
-                f.alpha = Some(h.alpha);
-                f.beta = Some(h.beta);
-                f.weights = Some(h.weights);
+                set_in_recipe! { f, h, lambda, alpha, beta, weights }
             }
             SmoothMethod::Taubin(t) => {
                 f.method = Some(MethodName::Taubin);
-                f.lambda = Some(t.lambda);
-                f.mu = Some(t.mu);
-                f.count = Some(t.count);
-                f.weights = Some(t.weights);
+                set_in_recipe! { f, t, lambda, mu, count, weights }
             }
             SmoothMethod::Bilateral(b) => {
                 f.method = Some(MethodName::Bilateral);
-                f.sigma_c = Some(b.sigma_c);
-                f.sigma_s = Some(b.sigma_s);
+                set_in_recipe! { f, b, sigma_c, sigma_s, rings, units }
                 f.radius = b.radius;
-                f.rings = Some(b.rings);
-                f.units = Some(b.units);
             }
             SmoothMethod::NormalFilter(n) => {
                 f.method = Some(MethodName::NormalFilter);
@@ -631,6 +620,20 @@ pub struct SmoothReport {
 /// small enough that two cores share the work evenly.
 pub(crate) const CHUNK: usize = 4096;
 
+/// Calls `f(i, &mut out[i])` for every `i`, in parallel chunks of [`CHUNK`]. Each call sees
+/// only its own element, so a pass written this way gives the same result for any thread
+/// count.
+pub(crate) fn par_for_each_indexed<T: Send>(out: &mut [T], f: impl Fn(usize, &mut T) + Sync) {
+    out.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let first = chunk * CHUNK;
+            for (k, slot) in out.iter_mut().enumerate() {
+                f(first + k, slot);
+            }
+        });
+}
+
 /// A prepared smoothing step: the adjacency (built once per step, CSR) and the parameters
 /// resolved against the mesh (the bilateral length unit). [`smooth`] is `new` + `run`;
 /// benchmarks use the two halves to time the passes alone.
@@ -646,8 +649,8 @@ pub struct Smoother {
     length_unit: f64,
 }
 
-/// What [`Smoother::run`] did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// What [`Smoother::run`] did; a method that does not count something leaves it 0.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct PassCounts {
     pub passes: u32,
     pub empty_neighbourhoods: u64,
@@ -720,7 +723,7 @@ impl Smoother {
                     empty_neighbourhoods: out.empty_neighbourhoods,
                     neighbours: out.neighbours,
                     outer_ring_neighbours: out.outer_ring_neighbours,
-                    undone_updates: 0,
+                    ..PassCounts::default()
                 };
             }
             SmoothMethod::NormalFilter(p) => {
@@ -734,19 +737,14 @@ impl Smoother {
                 );
                 return PassCounts {
                     passes: out.passes,
-                    empty_neighbourhoods: 0,
-                    neighbours: 0,
-                    outer_ring_neighbours: 0,
                     undone_updates: out.undone,
+                    ..PassCounts::default()
                 };
             }
         };
         PassCounts {
             passes,
-            empty_neighbourhoods: 0,
-            neighbours: 0,
-            outer_ring_neighbours: 0,
-            undone_updates: 0,
+            ..PassCounts::default()
         }
     }
 }

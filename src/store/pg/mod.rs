@@ -28,8 +28,8 @@ pub use conninfo::{ConnInfo, ConnInfoError};
 pub use finish::{Fence, Fenced};
 
 use super::{
-    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, InputMember, InputRole, KnownSet,
-    NewJob, Owner, RelPath, Result, RetryPolicy, StoreError, now_ms,
+    ClaimedJob, Enqueued, FailureKind, FinalState, Finish, InputMember, InputRole, JobOrder,
+    KnownSet, NewJob, Owner, RelPath, Result, RetryPolicy, StoreError, now_ms,
 };
 use postgres::{Client, GenericClient, NoTls};
 use std::time::{Duration, Instant};
@@ -276,7 +276,7 @@ impl PgStore {
     /// is UNIQUE and the insert does nothing on a conflict).
     pub fn enqueue(&mut self, job: &NewJob) -> Result<Enqueued> {
         let now = now_ms();
-        let rel = job.rel_path.to_stored();
+        let rel = job.order.rel_path.to_stored();
         self.with_tx(|tx| {
             let inserted = tx.query_opt(
                 "INSERT INTO job(job_key, set_hash, root, rel_path, output_root, recipe_path,
@@ -285,13 +285,13 @@ impl PgStore {
                  VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, 'queued', $10, $11, $11, $11)
                  ON CONFLICT (job_key) DO NOTHING RETURNING id",
                 &[
-                    &job.job_key,
-                    &job.set_hash,
-                    &job.root,
+                    &job.order.job_key,
+                    &job.order.set_hash,
+                    &job.order.root,
                     &rel,
-                    &job.output_root,
-                    &job.recipe_path,
-                    &job.recipe_hash,
+                    &job.order.output_root,
+                    &job.order.recipe_path,
+                    &job.order.recipe_hash,
                     &job.recipe_json,
                     &job.config_hash,
                     &(job.max_attempts as i64),
@@ -312,11 +312,11 @@ impl PgStore {
             tx.execute(
                 "INSERT INTO sighting(job_id, root, rel_path, seen_at) VALUES ($1, $2, $3, $4)
                  ON CONFLICT DO NOTHING",
-                &[&id, &job.root, &rel, &now],
+                &[&id, &job.order.root, &rel, &now],
             )?;
             tx.execute(
                 "DELETE FROM waiting WHERE root=$1 AND rel_path=$2",
-                &[&job.root, &rel],
+                &[&job.order.root, &rel],
             )?;
             Ok(result)
         })
@@ -349,13 +349,15 @@ impl PgStore {
             };
             let mut job = ClaimedJob {
                 id: r.get(0),
-                job_key: r.get(1),
-                set_hash: r.get(2),
-                root: r.get(3),
-                rel_path: stored_rel(r.get(4))?,
-                output_root: r.get(5),
-                recipe_path: r.get(6),
-                recipe_hash: r.get(7),
+                order: JobOrder {
+                    job_key: r.get(1),
+                    set_hash: r.get(2),
+                    root: r.get(3),
+                    rel_path: stored_rel(r.get(4))?,
+                    output_root: r.get(5),
+                    recipe_path: r.get(6),
+                    recipe_hash: r.get(7),
+                },
                 generation: r.get(8),
                 attempt: r.get::<_, i64>(9) as u32,
                 max_attempts: r.get::<_, i64>(10) as u32,
@@ -593,7 +595,7 @@ fn enqueue_existing(
 ) -> std::result::Result<Enqueued, DbError> {
     let row = tx.query_one(
         "SELECT id, state, error_kind FROM job WHERE job_key=$1 FOR UPDATE",
-        &[&job.job_key],
+        &[&job.order.job_key],
     )?;
     let (id, state, kind): (i64, String, Option<String>) = (row.get(0), row.get(1), row.get(2));
     let input_gone = kind
@@ -606,7 +608,7 @@ fn enqueue_existing(
     tx.execute(
         "UPDATE job SET state='queued', retryable=0, attempts=0, run_after=$2, updated_at=$2,
             root=$3, rel_path=$4, error_kind=NULL, error=NULL WHERE id=$1",
-        &[&id, &now, &job.root, &rel],
+        &[&id, &now, &job.order.root, &rel],
     )?;
     tx.execute("DELETE FROM job_input WHERE job_id=$1", &[&id])?;
     insert_inputs(tx, id, &job.inputs)?;

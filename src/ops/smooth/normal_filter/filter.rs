@@ -11,7 +11,7 @@
 //!   most consistent patch containing the face (see [`guidance`]), which is less noisy than
 //!   the face's own normal, so the range weight is decided on cleaner data.
 
-use super::super::CHUNK;
+use super::super::{CHUNK, par_for_each_indexed};
 use super::faces::Faces;
 use super::rings::{NONE, Rings};
 use glam::DVec3;
@@ -30,28 +30,23 @@ pub struct Widths {
 pub fn pass(rings: &Rings, faces: &Faces, range: &[DVec3], widths: Widths, out: &mut [DVec3]) {
     let inv_s = 1.0 / (2.0 * widths.sigma_s * widths.sigma_s);
     let inv_r = 1.0 / (2.0 * widths.sigma_r * widths.sigma_r);
-    out.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            for (k, slot) in out.iter_mut().enumerate() {
-                let i = chunk * CHUNK + k;
-                let (ci, ri) = (faces.centroid[i], range[i]);
-                let mut acc = DVec3::ZERO;
-                for &j in rings.face_ring(i) {
-                    let j = j as usize;
-                    let ds = faces.centroid[j].distance_squared(ci);
-                    let dr = range[j].distance_squared(ri);
-                    let w = faces.area[j] * (-(ds * inv_s + dr * inv_r)).exp();
-                    acc += faces.normal[j] * w;
-                }
-                let len = acc.length();
-                *slot = if len > 0.0 && len.is_finite() {
-                    acc / len
-                } else {
-                    faces.normal[i]
-                };
-            }
-        });
+    par_for_each_indexed(out, |i, slot| {
+        let (ci, ri) = (faces.centroid[i], range[i]);
+        let mut acc = DVec3::ZERO;
+        for &j in rings.face_ring(i) {
+            let j = j as usize;
+            let ds = faces.centroid[j].distance_squared(ci);
+            let dr = range[j].distance_squared(ri);
+            let w = faces.area[j] * (-(ds * inv_s + dr * inv_r)).exp();
+            acc += faces.normal[j] * w;
+        }
+        let len = acc.length();
+        *slot = if len > 0.0 && len.is_finite() {
+            acc / len
+        } else {
+            faces.normal[i]
+        };
+    });
 }
 
 /// Guidance normals of Zhang et al. 2015. Each triangle j defines a patch, its face ring
@@ -68,21 +63,16 @@ pub fn guidance(rings: &Rings, faces: &Faces, out: &mut [DVec3]) {
         .with_min_len(CHUNK)
         .map(|j| patch_score(rings, faces, j))
         .collect();
-    out.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            for (k, slot) in out.iter_mut().enumerate() {
-                let i = chunk * CHUNK + k;
-                let mut best = (f64::INFINITY, faces.normal[i]);
-                for &j in rings.face_ring(i) {
-                    let (h, g) = scored[j as usize];
-                    if h < best.0 {
-                        best = (h, g);
-                    }
-                }
-                *slot = best.1;
+    par_for_each_indexed(out, |i, slot| {
+        let mut best = (f64::INFINITY, faces.normal[i]);
+        for &j in rings.face_ring(i) {
+            let (h, g) = scored[j as usize];
+            if h < best.0 {
+                best = (h, g);
             }
-        });
+        }
+        *slot = best.1;
+    });
 }
 
 /// ε of R's denominator (Zhang et al. give 10⁻⁹): only keeps a perfectly flat patch finite.

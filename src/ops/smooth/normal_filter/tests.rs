@@ -3,6 +3,7 @@ use super::super::{Border, MethodName, SmoothMethod, SmoothParams, SmoothParamsF
 use super::NormalVariant;
 use crate::mesh::Mesh;
 use crate::mesh::shapes::uv_sphere;
+use crate::testing::on_threads;
 
 fn params(f: impl FnOnce(&mut SmoothParamsFile)) -> SmoothParams {
     let mut file = SmoothParamsFile {
@@ -89,12 +90,8 @@ fn deterministic_whatever_the_thread_count() {
     for variant in [NormalVariant::Bilateral, NormalVariant::Guided] {
         let p = params(|f| f.variant = Some(variant));
         let run = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
             let mut m = big_noisy_sphere();
-            let report = pool.install(|| smooth(&mut m, &p));
+            let report = on_threads(threads, || smooth(&mut m, &p));
             (m.positions, report.undone_updates)
         };
         let (one, three) = (run(1), run(3));

@@ -23,7 +23,7 @@
 //! positions before a pass have no such triangle (by induction from the input), so every
 //! offending triangle has a moved vertex and the loop ends.
 
-use super::super::CHUNK;
+use super::super::{CHUNK, par_for_each_indexed};
 use super::faces::Faces;
 use super::rings::Rings;
 use glam::DVec3;
@@ -38,28 +38,23 @@ pub fn pass(
     positions: &[DVec3],
     out: &mut [DVec3],
 ) {
-    out.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            for (k, slot) in out.iter_mut().enumerate() {
-                let v = chunk * CHUNK + k;
-                let x = positions[v];
-                let around = rings.vertex_faces(v);
-                if !moves(v) || around.is_empty() {
-                    *slot = x;
-                    continue;
-                }
-                let (mut step, mut vertex_normal) = (DVec3::ZERO, DVec3::ZERO);
-                for &f in around {
-                    let n = normals[f as usize];
-                    step += n * n.dot(faces.centroid[f as usize] - x);
-                    vertex_normal += faces.normal[f as usize] * faces.area[f as usize];
-                }
-                let along = vertex_normal.normalize_or_zero();
-                let next = x + along * along.dot(step) * (1.0 / around.len() as f64);
-                *slot = if next.is_finite() { next } else { x };
-            }
-        });
+    par_for_each_indexed(out, |v, slot| {
+        let x = positions[v];
+        let around = rings.vertex_faces(v);
+        if !moves(v) || around.is_empty() {
+            *slot = x;
+            return;
+        }
+        let (mut step, mut vertex_normal) = (DVec3::ZERO, DVec3::ZERO);
+        for &f in around {
+            let n = normals[f as usize];
+            step += n * n.dot(faces.centroid[f as usize] - x);
+            vertex_normal += faces.normal[f as usize] * faces.area[f as usize];
+        }
+        let along = vertex_normal.normalize_or_zero();
+        let next = x + along * along.dot(step) * (1.0 / around.len() as f64);
+        *slot = if next.is_finite() { next } else { x };
+    });
 }
 
 /// Puts back (to `before`) the moved vertices of every triangle of `after` that flipped
