@@ -292,16 +292,10 @@ mod tests {
         for (i, p) in b.positions.iter_mut().enumerate() {
             *p *= 1.0 + 0.01 * ((i * 7919) % 13) as f64;
         }
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap()
-            .install(|| surface_distance(&b, &a, 4000, 5).unwrap());
-        let two = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap()
-            .install(|| surface_distance(&b, &a, 4000, 5).unwrap());
+        let run = |threads| {
+            crate::testing::on_threads(threads, || surface_distance(&b, &a, 4000, 5).unwrap())
+        };
+        let (one, two) = (run(1), run(2));
         assert_eq!(
             serde_json::to_string(&one).unwrap(),
             serde_json::to_string(&two).unwrap()

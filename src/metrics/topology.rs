@@ -236,13 +236,8 @@ mod tests {
         for factor in [0.05, 0.7, 2.0, 5.0] {
             let reference = ReferenceTopology::from_topology(&m, &topology, factor);
             let r = reference.crack_distance;
-            let mut state = 7_u64;
-            let mut unit = || {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (state >> 11) as f64 / (1_u64 << 53) as f64
-            };
+            let mut lcg = crate::testing::Lcg(7);
+            let mut unit = || lcg.unit();
             let (mut near, mut far) = (0, 0);
             for _ in 0..2000 {
                 let p = DVec3::new(

@@ -210,13 +210,8 @@ mod tests {
     #[test]
     fn the_walk_and_union_find_agree_on_random_links() {
         let mut sc = LinkScratch::default();
-        let mut x = 7u64;
-        let mut next = |m: u64| {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (x >> 33) % m
-        };
+        let mut lcg = crate::testing::Lcg(7);
+        let mut next = |m: u64| (lcg.next_u64() >> 33) % m;
         let (mut cycles, mut paths, mut large) = (0, 0, 0);
         for _ in 0..20_000 {
             // Both strategies on every link, small and large, across the size where

@@ -213,13 +213,8 @@ mod tests {
     fn pops_in_key_then_index_order_with_updates_and_removals() {
         // A small deterministic pseudo-random workload checked against a sorted model.
         let n = 200u32;
-        let mut state = 12345u64;
-        let mut rnd = move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            state >> 33
-        };
+        let mut lcg = crate::testing::Lcg(12345);
+        let mut rnd = move || lcg.next_u64() >> 33;
         let entries: Vec<(u64, u32)> = (0..n)
             .filter(|t| t % 3 != 0)
             .map(|t| (rnd() % 50, t))

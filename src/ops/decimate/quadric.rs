@@ -556,13 +556,11 @@ impl Reduced {
 
     /// Adds a plane-only quadric (no wedge block).
     pub fn add_plane<const M: usize>(&mut self, q: &Quadric<M>) {
-        for k in 0..6 {
-            self.m[k] += q.p[k];
-        }
-        for k in 0..3 {
-            self.r[k] += q.beta[k];
-        }
-        self.c += q.c;
+        self.add(&Reduced {
+            m: q.p,
+            r: q.beta,
+            c: q.c,
+        });
     }
 
     /// Q_red at `p` (attributes optimal for `p`), clamped at 0 against round-off.

@@ -229,11 +229,7 @@ fn deterministic_across_thread_counts() {
     let m = seamed_grid(30);
     for method in [Method::FaceCollapse, Method::EdgeCollapse] {
         let on = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| decimate(&m, &params(method, 500)).unwrap().0)
+            crate::testing::on_threads(threads, || decimate(&m, &params(method, 500)).unwrap().0)
         };
         assert_eq!(on(1), on(3), "{method:?}");
     }

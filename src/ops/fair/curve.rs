@@ -323,13 +323,8 @@ mod tests {
 
     /// Uniform in [-1, 1], fixed seed.
     fn lcg(seed: u64) -> impl FnMut() -> f64 {
-        let mut state = seed;
-        move || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        }
+        let mut lcg = crate::testing::Lcg(seed);
+        move || lcg.signed()
     }
 
     fn polygon_area(pts: &[DVec3]) -> f64 {

@@ -854,13 +854,8 @@ mod tests {
 
     #[test]
     fn closed_form_root_matches_the_thesis_selection() {
-        let mut state = 12345u64;
-        let mut rand = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut lcg = crate::testing::Lcg(12345);
+        let mut rand = || lcg.unit();
         for _ in 0..20000 {
             let p = 0.02 + 0.96 * rand();
             let h = 0.1 + rand();

@@ -85,13 +85,8 @@ fn grid_border_stays_on_the_border_and_texture_is_kept() {
 #[test]
 fn deterministic_across_thread_counts() {
     let mesh = shapes::torus(1.0, 0.3, 40, 20);
-    let run = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| remesh(&mesh, &fraction(0.03)).unwrap().0)
-    };
+    let run =
+        |threads| crate::testing::on_threads(threads, || remesh(&mesh, &fraction(0.03)).unwrap().0);
     let (a, b) = (run(1), run(3));
     assert_eq!(a, b);
 }
@@ -294,13 +289,8 @@ fn adaptive_bump_gets_shorter_edges_than_the_flat_part() {
 #[test]
 fn adaptive_is_deterministic_across_thread_counts() {
     let mesh = shapes::torus(1.0, 0.3, 40, 20);
-    let run = |threads| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| remesh(&mesh, &adaptive(0.05)).unwrap())
-    };
+    let run =
+        |threads| crate::testing::on_threads(threads, || remesh(&mesh, &adaptive(0.05)).unwrap());
     let ((a, ra), (b, rb)) = (run(1), run(3));
     assert_eq!(a, b);
     assert_eq!(ra.counts.splits, rb.counts.splits);

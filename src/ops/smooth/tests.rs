@@ -26,17 +26,9 @@ fn with(method: MethodName, f: impl FnOnce(&mut SmoothParamsFile)) -> SmoothPara
 
 /// Deterministic pseudo-random numbers in [-1, 1] (no RNG crate needed for unit tests).
 pub(super) fn noise(seed: u64, count: usize) -> Vec<f64> {
-    let mut s = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    (0..count)
-        .map(|_| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        })
-        .collect()
+    let mut lcg = crate::testing::Lcg(seed);
+    lcg.next_u64();
+    (0..count).map(|_| lcg.signed()).collect()
 }
 
 pub(super) fn signed_volume(m: &Mesh) -> f64 {

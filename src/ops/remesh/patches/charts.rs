@@ -212,14 +212,8 @@ impl Cut {
                 let k = (0..3).find(|&k| l[k] == l[(k + 1) % 3]).unwrap_or(0);
                 let (a, b, c) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
                 let (mbc, mca) = (mid(b, c), mid(c, a));
-                let p = |v: u32| points[v as usize];
-                let quad = &mut pieces[l[k] as usize];
-                if p(a).distance_squared(p(mbc)) <= p(b).distance_squared(p(mca)) {
-                    quad.push(([a, b, mbc], parent));
-                    quad.push(([a, mbc, mca], parent));
-                } else {
-                    quad.push(([a, b, mca], parent));
-                    quad.push(([b, mbc, mca], parent));
+                for t in super::split_quad([a, b, mbc, mca], |v| points[v as usize]) {
+                    pieces[l[k] as usize].push((t, parent));
                 }
                 pieces[l[(k + 2) % 3] as usize].push(([mbc, c, mca], parent));
             }

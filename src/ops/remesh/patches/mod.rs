@@ -65,6 +65,17 @@ impl UniqueSides {
     }
 }
 
+/// The two counter-clockwise triangles of the quad `q`, split along its shorter diagonal
+/// (the thesis' proposal, §4.7; the first diagonal on a tie); `p` gives the positions.
+pub(crate) fn split_quad(q: [u32; 4], p: impl Fn(u32) -> glam::DVec3) -> [[u32; 3]; 2] {
+    let [a, b, c, d] = q;
+    if p(a).distance_squared(p(c)) <= p(b).distance_squared(p(d)) {
+        [[a, b, c], [a, c, d]]
+    } else {
+        [[a, b, d], [b, c, d]]
+    }
+}
+
 /// Output triangles per region: 3 quads × 16 patches × 2n².
 fn faces_per_region(n: usize) -> f64 {
     96.0 * (n * n) as f64

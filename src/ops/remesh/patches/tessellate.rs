@@ -111,13 +111,8 @@ impl Grid<'_> {
                             self.id(f, i + 1, j + 1),
                             self.id(f, i, j + 1),
                         );
-                        let p = |v: u32| positions[v as usize];
-                        if p(a).distance_squared(p(c)) <= p(b).distance_squared(p(d)) {
-                            out.push(([a, b, c], origin));
-                            out.push(([a, c, d], origin));
-                        } else {
-                            out.push(([a, b, d], origin));
-                            out.push(([b, c, d], origin));
+                        for t in super::split_quad([a, b, c, d], |v| positions[v as usize]) {
+                            out.push((t, origin));
                         }
                     }
                 }
