@@ -444,54 +444,53 @@ impl Sparse {
         }
     }
 
-    fn times(&self, x: &[DVec2], out: &mut [DVec2]) {
+    /// `out` = A·x; returns x·(A·x), summed in row order.
+    fn times(&self, x: &[DVec2], out: &mut [DVec2]) -> DVec2 {
+        let mut xax = DVec2::ZERO;
         for (r, o) in out.iter_mut().enumerate() {
             let mut s = x[r] * self.diagonal[r];
             for k in self.start[r]..self.start[r + 1] {
                 s -= x[self.column[k] as usize] * self.value[k];
             }
             *o = s;
+            xax += x[r] * s;
         }
+        xax
     }
 
     /// Jacobi-preconditioned conjugate gradients from 0, both coordinates at once (each
     /// with its own step lengths), to a relative residual of 1e-9 (or 4n + 100 iterations).
+    /// One pass over the vectors per step besides the product: the update of x and r, the
+    /// preconditioned residual and both dot products together.
     fn solve(&self, b: &[DVec2]) -> Vec<DVec2> {
         let n = b.len();
-        let dot = |a: &[DVec2], b: &[DVec2]| -> DVec2 {
-            a.iter().zip(b).fold(DVec2::ZERO, |s, (a, b)| s + *a * *b)
-        };
-        let precondition = |r: &[DVec2], z: &mut [DVec2]| {
-            for ((z, r), d) in z.iter_mut().zip(r).zip(&self.diagonal) {
-                *z = *r / *d;
-            }
-        };
         let mut x = vec![DVec2::ZERO; n];
         let mut r = b.to_vec();
-        let mut z = vec![DVec2::ZERO; n];
-        precondition(&r, &mut z);
+        let mut z: Vec<DVec2> = r.iter().zip(&self.diagonal).map(|(r, d)| *r / *d).collect();
         let mut p = z.clone();
-        let mut rz = dot(&r, &z);
-        let goal = dot(b, b).max(DVec2::splat(f64::MIN_POSITIVE)) * 1e-18;
+        let mut rz = r.iter().zip(&z).fold(DVec2::ZERO, |s, (r, z)| s + *r * *z);
+        let mut rr = r.iter().fold(DVec2::ZERO, |s, r| s + *r * *r);
+        let goal = rr.max(DVec2::splat(f64::MIN_POSITIVE)) * 1e-18;
         let mut ap = vec![DVec2::ZERO; n];
         for _ in 0..4 * n + 100 {
-            let rr = dot(&r, &r);
             if rr.x <= goal.x && rr.y <= goal.y {
                 break;
             }
-            self.times(&p, &mut ap);
-            let pap = dot(&p, &ap);
+            let pap = self.times(&p, &mut ap);
             // A converged coordinate stops moving (0/0 would be NaN).
             let alpha = DVec2::new(
                 if pap.x > 0.0 { rz.x / pap.x } else { 0.0 },
                 if pap.y > 0.0 { rz.y / pap.y } else { 0.0 },
             );
+            let (mut next, mut squares) = (DVec2::ZERO, DVec2::ZERO);
             for k in 0..n {
                 x[k] += alpha * p[k];
                 r[k] -= alpha * ap[k];
+                z[k] = r[k] / self.diagonal[k];
+                next += r[k] * z[k];
+                squares += r[k] * r[k];
             }
-            precondition(&r, &mut z);
-            let next = dot(&r, &z);
+            rr = squares;
             let beta = DVec2::new(
                 if rz.x > 0.0 { next.x / rz.x } else { 0.0 },
                 if rz.y > 0.0 { next.y / rz.y } else { 0.0 },
