@@ -79,31 +79,31 @@ impl TextureCache {
 
     /// The decoded image, or why it could not be read.
     pub fn get(&mut self, path: &Path) -> Result<Arc<RgbImage>, String> {
-        let mut cache = self.shared.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(known) = cache.images.get(path) {
-            return known.clone();
-        }
-        let Images {
-            limits,
-            pixels_left,
-            ..
-        } = &mut *cache;
-        // `into_rgb8`: an image decoded as RGB8 (JPEG, most PNGs) is kept, not copied.
-        let loaded = texture::load_image(path, limits, pixels_left)
-            .map(|img| Arc::new(img.into_rgb8()))
-            .map_err(|e| e.to_string());
-        cache.images.insert(path.to_path_buf(), loaded.clone());
-        loaded
+        self.cached(path, |limits, pixels_left| {
+            texture::load_image(path, limits, pixels_left)
+        })
     }
 
     /// The decoded image of texture `t` (a file or embedded in the scan's file), or why it
     /// could not be read.
     pub fn get_texture(&mut self, t: &Texture) -> Result<Arc<RgbImage>, String> {
-        if t.embedded.is_none() {
-            return self.get(&t.path);
-        }
+        // A file is named by its path in errors, as `get` names it.
+        self.cached(&t.path, |limits, pixels_left| match t.embedded {
+            None => texture::load_image(&t.path, limits, pixels_left),
+            Some(_) => texture::load_texture(t, limits, pixels_left),
+        })
+    }
+
+    /// The image cached under `key`, or `load`ed within the cache's limits and kept (an
+    /// error too, so a bad file is read once). `into_rgb8`: an image decoded as RGB8 (JPEG,
+    /// most PNGs) is kept, not copied.
+    fn cached<E: std::fmt::Display>(
+        &mut self,
+        key: &Path,
+        load: impl FnOnce(&InputLimits, &mut u64) -> Result<image::DynamicImage, E>,
+    ) -> Result<Arc<RgbImage>, String> {
         let mut cache = self.shared.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(known) = cache.images.get(&t.path) {
+        if let Some(known) = cache.images.get(key) {
             return known.clone();
         }
         let Images {
@@ -111,10 +111,10 @@ impl TextureCache {
             pixels_left,
             ..
         } = &mut *cache;
-        let loaded = texture::load_texture(t, limits, pixels_left)
+        let loaded = load(limits, pixels_left)
             .map(|img| Arc::new(img.into_rgb8()))
             .map_err(|e| e.to_string());
-        cache.images.insert(t.path.clone(), loaded.clone());
+        cache.images.insert(key.to_path_buf(), loaded.clone());
         loaded
     }
 

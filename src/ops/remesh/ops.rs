@@ -318,36 +318,34 @@ pub fn line_neighbours(c: &Corners, v: u32, sc: &mut Scratch) -> Option<[u32; 2]
 
 /// The area-weighted centroid of the faces around `v` and their unit area-weighted normal.
 pub fn fan_centroid(c: &Corners, v: u32, sc: &mut Scratch) -> (DVec3, DVec3) {
-    c.fan(v, &mut sc.hs);
-    let (mut sum, mut area, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
-    for &h in &sc.hs {
-        let f = (h / 3) as usize;
-        let n = c.face_cross(f);
-        let [a, b, d] = c.face_positions(f);
-        let w = n.length();
-        sum += w * (a + b + d) / 3.0;
-        area += w;
-        normal += n;
-    }
-    if area > 0.0 {
-        (sum / area, normal.normalize_or_zero())
-    } else {
-        (c.pos[v as usize], DVec3::ZERO)
-    }
+    weighted_fan_centroid(c, v, sc, |_| 1.0)
 }
 
 /// As [`fan_centroid`], each face weighted by its area over the square of its mean vertex
 /// size (`size`), so that the centroid of a graded fan is not pulled towards its larger
 /// faces (pmp-library's adaptive relaxation weights).
 pub fn fan_centroid_sized(c: &Corners, v: u32, size: &[f64], sc: &mut Scratch) -> (DVec3, DVec3) {
+    weighted_fan_centroid(c, v, sc, |f| {
+        let s = (0..3).map(|i| size[c.vtx[3 * f + i] as usize]).sum::<f64>() / 3.0;
+        s * s
+    })
+}
+
+/// The centroid of the faces around `v`, face f weighted by its area over `divisor(f)`, and
+/// their unit area-weighted normal; `v` itself and no normal when the weights vanish.
+fn weighted_fan_centroid(
+    c: &Corners,
+    v: u32,
+    sc: &mut Scratch,
+    divisor: impl Fn(usize) -> f64,
+) -> (DVec3, DVec3) {
     c.fan(v, &mut sc.hs);
     let (mut sum, mut weight, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
     for &h in &sc.hs {
         let f = (h / 3) as usize;
         let n = c.face_cross(f);
         let [a, b, d] = c.face_positions(f);
-        let s = (0..3).map(|i| size[c.vtx[3 * f + i] as usize]).sum::<f64>() / 3.0;
-        let w = n.length() / (s * s);
+        let w = n.length() / divisor(f);
         sum += w * (a + b + d) / 3.0;
         weight += w;
         normal += n;
