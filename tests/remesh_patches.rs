@@ -8,7 +8,8 @@ mod common;
 
 use glam::DVec3;
 use scanmill::mesh::{Mesh, Topology};
-use scanmill::metrics::distance::{vertex_distances, vertex_normals};
+use scanmill::metrics::distance::vertex_distances;
+use scanmill::metrics::surface::SurfaceIndex;
 use scanmill::metrics::volume::volume;
 use scanmill::ops::remesh::{Method, RemeshParams, remesh};
 use std::collections::HashMap;
@@ -138,6 +139,12 @@ struct Figures {
     flipped: f64,
 }
 
+fn distance_to_triangle(p: DVec3, [a, b, c]: [DVec3; 3]) -> f64 {
+    scanmill::geom::closest_on_triangle(p, a, b, c)
+        .0
+        .distance(p)
+}
+
 /// Remeshes and checks: closed, manifold, consistently oriented, same Euler
 /// characteristic, finite, and the share of triangles facing against the input's nearest
 /// triangle below `max_flipped`.
@@ -161,26 +168,27 @@ fn run_checked(input: &Mesh, p: &RemeshParams, max_flipped: f64) -> (Mesh, Figur
     );
     assert_eq!(to.euler_characteristic(), ti.euler_characteristic());
     assert_eq!(to.component_count(), ti.component_count());
-    // Flipped patches: each output triangle's normal against the input's vertex normals
-    // (area-weighted) at the nearest input triangle (origins point at it), as the step
-    // counts and reports them.
-    let vn = vertex_normals(input);
+    // Triangles facing against the input: each output triangle's normal against the input
+    // triangle closest to its centroid (the metrics' reading, the rule the step repairs by)
+    // and against every other input triangle as close (at a sharp edge of the cube two
+    // are, and which one a search finds is arbitrary).
+    let index = SurfaceIndex::new(input, "input").unwrap();
+    let tie = 1e-9 * input.bounding_box_diagonal();
     let against = (0..out.triangles.len())
         .filter(|&t| {
-            let o = out.triangle_origins[t] as usize;
-            let n: DVec3 = input
-                .triangle_vertices(o)
-                .iter()
-                .map(|&v| vn[v as usize])
-                .sum();
-            out.triangle_cross(t).dot(n) < 0.0
+            let c = out.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
+            let n = out.triangle_cross(t);
+            let closest = index.closest(c);
+            n.dot(input.triangle_cross(closest.on.triangle as usize)) < 0.0
+                && (0..input.triangles.len()).all(|u| {
+                    n.dot(input.triangle_cross(u)) < 0.0
+                        || distance_to_triangle(c, input.triangle_positions(u))
+                            > closest.distance + tie
+                })
         })
         .count();
     let patches = report.patches.as_ref().unwrap();
-    assert_eq!(
-        patches.facing_against_input, against,
-        "the report counts them"
-    );
+    assert!(against <= patches.turned.left, "the report counts them");
     assert_eq!(
         patches.folded_chart_triangles, 0,
         "the harmonic charts fold over"
@@ -352,9 +360,9 @@ fn the_output_does_not_depend_on_the_thread_count() {
 }
 
 /// The closed scans of ../shared/data (SOURCES.md), at 100k output triangles or the scan's
-/// own count: closed, manifold, of the input's topology, fold-free charts, at most 0.1 % of
+/// own count: closed, manifold, of the input's topology, fold-free charts, at most 0.03 % of
 /// the triangles facing against the input (where a smooth patch bridges a crease narrower
-/// than itself: eyelids, lips, ear folds), near the input, volume kept within 2.5 %. The
+/// than itself: eyelids, lips, ear folds; up to 0.13 % before the repair pass), near the input, volume kept within 2.5 %. The
 /// figures go to docs/remeshing.md. A scan that is not closed and manifold must give the
 /// clear error instead.
 #[test]
@@ -389,13 +397,13 @@ fn closed_real_scans_are_remeshed_closed_and_manifold() {
             assert!(e.contains("isotropic") || e.contains("orient"), "{e}");
             continue;
         }
-        let (out, g) = run_checked(&mesh, &p, 0.001);
+        let (out, g) = run_checked(&mesh, &p, 0.0003);
         let d = vertex_distances(&out, &mesh).unwrap();
         let diag = mesh.bounding_box_diagonal();
         let mean = d.iter().sum::<f64>() / d.len() as f64;
         let max = d.iter().cloned().fold(0.0, f64::max);
         eprintln!(
-            "{rel}: {} -> {} triangles in {:.2} s, volume {:+.2} %, area {:+.2} %, distance mean {:.4} % max {:.3} % of the diagonal, facing against the input {:.2} %",
+            "{rel}: {} -> {} triangles in {:.2} s, volume {:+.2} %, area {:+.2} %, distance mean {:.4} % max {:.3} % of the diagonal, facing against the input {:.3} %",
             mesh.triangles.len(),
             g.faces,
             g.seconds,

@@ -12,6 +12,7 @@
 use super::corners::{Corners, NIL, VKind, prev};
 use super::lines::Lines;
 use super::ops::{self, Scratch};
+use super::repair::{self, Repairs};
 use super::sizing::Sizing;
 use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
@@ -26,6 +27,8 @@ pub struct Counts {
     pub collapses: usize,
     pub valence_flips: usize,
     pub angle_flips: usize,
+    /// The last pass: faces turned against the input, and their repair ([`repair`]).
+    pub turned: Repairs,
 }
 
 /// At most this many collapse sweeps per iteration: a dense input needs several to come
@@ -210,7 +213,49 @@ pub fn relax(c: &mut Corners, sizing: &Sizing) {
         .into_par_iter()
         .map_init(Scratch::default, |sc, v| relaxed(c, sizing, v, sc))
         .collect();
-    c.pos = new;
+    let old = std::mem::replace(&mut c.pos, new);
+    undo_turns(c, &old);
+}
+
+/// After a pass that moved every vertex at once from `old`: each vertex checked its own
+/// move against its neighbours' old positions, so two neighbours moving together can still
+/// turn a face over. Every face that now faces against (or across, or is degenerate where it
+/// was not) its orientation at `old` gets its moved corners put back, repeated until none
+/// is left; returns which vertices went back. Terminates: each round puts back at least
+/// one moved vertex, and a face of unmoved corners is as it was.
+fn undo_turns(c: &mut Corners, old: &[DVec3]) -> Vec<bool> {
+    let mut back = vec![false; c.pos.len()];
+    loop {
+        let turned: Vec<usize> = (0..c.face_count())
+            .into_par_iter()
+            .filter(|&f| {
+                if c.face_dead[f] {
+                    return false;
+                }
+                let v = [0, 1, 2].map(|i| c.vtx[3 * f + i] as usize);
+                if v.iter().all(|&v| c.pos[v] == old[v]) {
+                    return false;
+                }
+                let before = v.map(|v| old[v]);
+                let b = (before[1] - before[0]).cross(before[2] - before[0]);
+                !ops::face_ok(c.face_positions(f), b)
+            })
+            .collect();
+        let mut moved_back = 0;
+        for f in turned {
+            for i in 0..3 {
+                let v = c.vtx[3 * f + i] as usize;
+                if c.pos[v] != old[v] {
+                    c.pos[v] = old[v];
+                    back[v] = true;
+                    moved_back += 1;
+                }
+            }
+        }
+        if moved_back == 0 {
+            return back;
+        }
+    }
 }
 
 fn relaxed(c: &Corners, sizing: &Sizing, v: u32, sc: &mut Scratch) -> DVec3 {
@@ -251,10 +296,17 @@ pub fn project(c: &mut Corners, lines: &Lines, bvh: &TriangleBvh) {
         .into_par_iter()
         .map_init(Scratch::default, |sc, v| projected(c, lines, bvh, v, sc))
         .collect();
+    let (seg0, tri0) = (c.vseg.clone(), c.vtri.clone());
+    let old = c.pos.clone();
     for (v, (p, seg, tri)) in new.into_iter().enumerate() {
         c.pos[v] = p;
         c.vseg[v] = seg;
         c.vtri[v] = tri;
+    }
+    let back = undo_turns(c, &old);
+    for v in (0..back.len()).filter(|&v| back[v]) {
+        c.vseg[v] = seg0[v];
+        c.vtri[v] = tri0[v];
     }
 }
 
@@ -313,5 +365,6 @@ pub fn run(
         sizing.follow(c, lines, input);
         counts.angle_flips += flip_angles(c, &mut sc);
     }
+    counts.turned = repair::repair(c, lines, bvh, input, &mut sc);
     counts
 }

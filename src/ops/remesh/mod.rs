@@ -15,6 +15,7 @@ pub mod lines;
 pub mod ops;
 pub mod patches;
 pub mod quality;
+pub mod repair;
 pub mod sizing;
 #[cfg(test)]
 mod tests;

@@ -25,7 +25,7 @@ fn q(p: [DVec3; 3]) -> f64 {
 
 /// A face with corners `p` may replace one whose (unnormalised) normal was `before`: it
 /// does not turn by more than 90° and is not degenerate.
-fn face_ok(p: [DVec3; 3], before: DVec3) -> bool {
+pub fn face_ok(p: [DVec3; 3], before: DVec3) -> bool {
     let n = (p[1] - p[0]).cross(p[2] - p[0]);
     n.dot(before) > 0.0 && q(p) > DEGENERATE_QUALITY
 }
@@ -91,6 +91,25 @@ pub fn can_collapse(
     sizing: &Sizing,
     sc: &mut Scratch,
 ) -> bool {
+    if !can_collapse_topologically(c, h, a, b, sc) {
+        return false;
+    }
+    let pb = c.pos[b as usize];
+    c.ring(a, &mut sc.hs, &mut sc.ring_a);
+    if sc
+        .ring_a
+        .iter()
+        .any(|&x| x != b && c.pos[x as usize].distance(pb) > sizing.hi(x, b))
+    {
+        return false;
+    }
+    faces_ok(c, a, b, sc)
+}
+
+/// The checks of [`can_collapse`] that do not look at positions: neither vertex locked,
+/// `a` free to go along `h` (a line vertex only along its line, a border vertex only along
+/// the border), the removed faces' sides, and the link condition.
+pub fn can_collapse_topologically(c: &Corners, h: u32, a: u32, b: u32, sc: &mut Scratch) -> bool {
     if c.locked[a as usize] || c.locked[b as usize] || c.kind[a as usize] == VKind::Corner {
         return false;
     }
@@ -105,16 +124,7 @@ pub fn can_collapse(
     if !sides_ok(c, h, sc) || (g != NIL && !sides_ok(c, g, sc)) {
         return false;
     }
-    let pb = c.pos[b as usize];
-    c.ring(a, &mut sc.hs, &mut sc.ring_a);
-    if sc
-        .ring_a
-        .iter()
-        .any(|&x| x != b && c.pos[x as usize].distance(pb) > sizing.hi(x, b))
-    {
-        return false;
-    }
-    link_ok(c, a, b, sc) && faces_ok(c, a, b, sc)
+    link_ok(c, a, b, sc)
 }
 
 /// A face removed by a collapse: its two other edges are not both constrained (they
@@ -219,19 +229,12 @@ fn remove_face(c: &mut Corners, h: u32) {
 /// Whether flipping the edge of `h` (a→b, faces a b c and b a d) to c–d is allowed, and
 /// the two new faces are fine.
 pub fn can_flip(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
-    if c.is_constrained(h) {
+    if !can_flip_topologically(c, h, sc) {
         return false;
     }
     let g = c.opp[h as usize];
     let (a, b) = (c.vtx[h as usize], c.dest(h));
     let (cc, d) = (c.vtx[prev(h) as usize], c.vtx[prev(g) as usize]);
-    if cc == d || [a, b, cc, d].iter().any(|&v| c.locked[v as usize]) {
-        return false;
-    }
-    c.ring(cc, &mut sc.hs, &mut sc.ring_a);
-    if sc.ring_a.contains(&d) {
-        return false;
-    }
     let (pa, pb, pc, pd) = (
         c.pos[a as usize],
         c.pos[b as usize],
@@ -247,6 +250,22 @@ pub fn can_flip(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
         && face_ok([pd, pb, pc], before)
         && face_ok([pc, pa, pd], n1)
         && face_ok([pd, pb, pc], n2)
+}
+
+/// Whether the edge of `h` (a→b, faces a b c and b a d) is free, its four vertices are not
+/// locked, and c–d is not an edge already (the flip would make it non-manifold).
+pub fn can_flip_topologically(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
+    if c.is_constrained(h) {
+        return false;
+    }
+    let g = c.opp[h as usize];
+    let (a, b) = (c.vtx[h as usize], c.dest(h));
+    let (cc, d) = (c.vtx[prev(h) as usize], c.vtx[prev(g) as usize]);
+    if cc == d || [a, b, cc, d].iter().any(|&v| c.locked[v as usize]) {
+        return false;
+    }
+    c.ring(cc, &mut sc.hs, &mut sc.ring_a);
+    !sc.ring_a.contains(&d)
 }
 
 /// Flips the edge of `h` (a→b, faces a b c and b a d) to c–d; [`can_flip`] said yes.

@@ -362,3 +362,48 @@ fn adaptive_keys_stay_out_of_the_resolved_recipe_when_absent() {
     let v = serde_json::to_value(adaptive(0.01)).unwrap();
     assert_eq!(v["adaptive"], true);
 }
+
+fn repaired(c: &mut Corners, lines: &Lines, mesh: &Mesh) -> repair::Repairs {
+    let bvh = crate::geom::bvh::TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
+    repair::repair(c, lines, &bvh, mesh, &mut ops::Scratch::default())
+}
+
+#[test]
+fn repair_turns_faces_back_to_the_input() {
+    let mesh = shapes::grid(8, 8);
+    let (mut c, lines) = working(&mesh);
+    // An inner vertex dragged past its right-hand neighbour: its faces on that side face -z.
+    let v = 4 * 9 + 4;
+    c.pos[v] = glam::DVec3::new(5.6, 4.3, 0.0);
+    let turned = |c: &Corners| {
+        (0..c.face_count())
+            .filter(|&f| !c.face_dead[f] && c.face_cross(f).z <= 0.0)
+            .count()
+    };
+    assert!(turned(&c) > 0);
+    let r = repaired(&mut c, &lines, &mesh);
+    assert_eq!(r.turned, turned_before(&mesh, v));
+    assert_eq!((r.left, r.left_unmovable), (0, 0), "{r:?}");
+    assert!(r.flips + r.moves + r.collapses > 0);
+    assert_eq!(turned(&c), 0);
+    c.check().unwrap();
+}
+
+/// The faces of the grid turned or degenerate with vertex `v` moved as in the test above.
+fn turned_before(mesh: &Mesh, v: usize) -> usize {
+    let mut m = mesh.clone();
+    m.positions[v] = glam::DVec3::new(5.6, 4.3, 0.0);
+    (0..m.triangles.len())
+        .filter(|&t| m.triangle_cross(t).z <= 1e-9)
+        .count()
+}
+
+#[test]
+fn repair_leaves_a_mesh_that_agrees_untouched() {
+    let mesh = shapes::uv_sphere(1.0, 12, 24);
+    let (mut c, lines) = working(&mesh);
+    let before = c.pos.clone();
+    let r = repaired(&mut c, &lines, &mesh);
+    assert_eq!(r, repair::Repairs::default());
+    assert_eq!(c.pos, before);
+}

@@ -21,6 +21,7 @@ pub mod layout;
 pub mod quads;
 pub mod tessellate;
 
+use super::repair::{self, Repairs};
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
 use cells::Graph;
@@ -91,12 +92,14 @@ pub struct PatchesReport {
     pub retries: usize,
     pub regions: usize,
     pub patches: usize,
-    /// Output triangles facing against the input (see [`facing_against`]): 0 on smooth
-    /// shapes; a few where a crease is narrower than a patch and the patch bridges it.
-    pub facing_against_input: usize,
     /// Parameter triangles turned over in the cells' harmonic charts: 0 by construction
     /// (positive weights on a convex polygon); counted as a check.
     pub folded_chart_triangles: usize,
+    /// The isotropic remesher's last pass, run on the tessellation: triangles turned against
+    /// the input triangle closest to their centroid (where a patch bridges a crease narrower
+    /// than itself), their repair (`remesh::repair`), and how many are left (0 on smooth
+    /// shapes; a few at the narrowest creases of real scans).
+    pub turned: Repairs,
     pub texcoords_dropped: bool,
 }
 
@@ -154,10 +157,10 @@ pub fn remesh(
     let fine = quads::build(&layout, &charts);
     let nets = bezier::nets(&fine).map_err(PatchesError::Internal)?;
     let out = tessellate::tessellate(&fine, &nets, resolution);
-    let facing_against_input = facing_against(mesh, &out);
-    if facing_against_input > 0 {
+    let (out, turned) = repair::repair_mesh(mesh, out);
+    if turned.left > 0 {
         tracing::warn!(
-            triangles = facing_against_input,
+            triangles = turned.left,
             "remesh patches: output triangles face against the input (creases or thin parts narrower than a patch; a smaller f helps)"
         );
     }
@@ -169,8 +172,8 @@ pub fn remesh(
         retries,
         regions: layout.regions.len(),
         patches: fine.faces.len(),
-        facing_against_input,
         folded_chart_triangles: charts.folded,
+        turned,
         texcoords_dropped: mesh.has_texcoords(),
     };
     Ok((out, report))
@@ -320,24 +323,4 @@ fn valid_layout(
             }
         }
     }
-}
-
-/// Output triangles whose normal points against the input's at the input triangle their
-/// patch's Doo–Sabin point lies on (`triangle_origins`; the input's area-weighted vertex
-/// normals summed over that triangle): where a patch turned over, at thin parts.
-pub fn facing_against(input: &Mesh, out: &Mesh) -> usize {
-    let normals = crate::metrics::distance::vertex_normals(input);
-    (0..out.triangles.len())
-        .filter(|&t| {
-            let Some(&o) = out.triangle_origins.get(t) else {
-                return false;
-            };
-            let n: glam::DVec3 = input
-                .triangle_vertices(o as usize)
-                .iter()
-                .map(|&v| normals[v as usize])
-                .sum();
-            out.triangle_cross(t).dot(n) < 0.0
-        })
-        .count()
 }

@@ -123,7 +123,10 @@ impl Grid<'_> {
 }
 
 /// A mesh of bare positions: one wedge per vertex, no texture coordinates or normals.
-fn mesh_of(positions: Vec<DVec3>, triangles: Vec<([Index; 3], Index)>) -> Mesh {
+pub(in crate::ops::remesh) fn mesh_of(
+    positions: Vec<DVec3>,
+    triangles: Vec<([Index; 3], Index)>,
+) -> Mesh {
     let mut m = Mesh {
         wedges: (0..positions.len() as Index)
             .map(|v| Wedge {

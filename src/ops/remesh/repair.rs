@@ -1,0 +1,346 @@
+//! The last pass of `isotropic`: faces turned against the input.
+//!
+//! Every operation of the remesher checks its faces against their orientation just before
+//! it (`ops::face_ok`), so no single step turns a face over; but a face can turn by steps
+//! that are each under 90°, and where the input is crumpled (a ragged scan border folded
+//! over itself) the projection can lay a face across a fold. The decimation promises no
+//! face against the input; so does this pass, with the input's orientation read the way
+//! the metrics and the output's triangle origins read it: the input triangle closest to
+//! the face's centroid.
+//!
+//! Each turned face, in index order, gets the first of these after which fewer of the faces
+//! it changes disagree with the input (turned, or degenerate): flip one of its free edges;
+//! move one of its corners (a free vertex to the input's closest point to the centroid of
+//! its fan or to itself, or halfway to the first; a line vertex along its line towards the
+//! middle of its line neighbours); collapse one of its edges under the remesher's
+//! topological rules. A face's agreement depends on its own corners only, so each repair
+//! lowers the number of disagreeing faces and the pass ends; it goes round again while a
+//! round repairs something, since a repair can change what is closest to a neighbour.
+//!
+//! What it cannot repair is left and counted: where the input folds over itself (james's
+//! ragged border, where a quarter to four fifths of the input triangles within two edge
+//! lengths face against the closest one), no placement of the few corners nearby agrees
+//! with every closest triangle.
+
+use super::build;
+use super::corners::{Corners, NIL, VKind, prev};
+use super::lines::Lines;
+use super::ops::{self, Scratch};
+use super::patches::tessellate::mesh_of;
+use crate::geom::bvh::TriangleBvh;
+use crate::mesh::Mesh;
+use crate::mesh::topology::Topology;
+use glam::DVec3;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// What the pass did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct Repairs {
+    /// Faces turned against the input (or degenerate) before the pass.
+    pub turned: usize,
+    pub flips: usize,
+    pub moves: usize,
+    pub collapses: usize,
+    /// Faces still turned after it.
+    pub left: usize,
+    /// Of those, the faces whose corners may not move (line ends, junctions and locked
+    /// vertices).
+    pub left_unmovable: usize,
+}
+
+/// At most this many rounds (james: 16 faces turned, 2 left after the second round).
+const MAX_ROUNDS: usize = 8;
+
+/// The input's orientation under the face with corners `p`: the normal (not normalised) of
+/// the input triangle closest to its centroid, searched from `hint`.
+fn input_normal(bvh: &TriangleBvh, input: &Mesh, p: [DVec3; 3], hint: u32) -> DVec3 {
+    let centroid = (p[0] + p[1] + p[2]) / 3.0;
+    let start = bvh.hit_on(centroid, hint);
+    let t = bvh
+        .closest(centroid, Some(start))
+        .map_or(hint, |h| h.triangle);
+    input.triangle_cross(t as usize)
+}
+
+struct Input<'a> {
+    bvh: &'a TriangleBvh<'a>,
+    mesh: &'a Mesh,
+    lines: &'a Lines,
+}
+
+impl Input<'_> {
+    /// A face with corners `p` faces the input's way (an input triangle of zero area has no
+    /// way: it does not object) and is not degenerate.
+    fn agrees(&self, p: [DVec3; 3], hint: u32) -> bool {
+        let n = input_normal(self.bvh, self.mesh, p, hint);
+        let n = if n == DVec3::ZERO {
+            (p[1] - p[0]).cross(p[2] - p[0])
+        } else {
+            n
+        };
+        ops::face_ok(p, n)
+    }
+
+    fn face_agrees(&self, c: &Corners, f: usize) -> bool {
+        self.agrees(c.face_positions(f), c.vtri[c.vtx[3 * f] as usize])
+    }
+}
+
+/// The live faces turned against the input, in index order.
+fn turned_faces(c: &Corners, input: &Input) -> Vec<usize> {
+    (0..c.face_count())
+        .into_par_iter()
+        .filter(|&f| !c.face_dead[f] && !input.face_agrees(c, f))
+        .collect()
+}
+
+/// Runs the pass (see the module's documentation).
+pub fn repair(
+    c: &mut Corners,
+    lines: &Lines,
+    bvh: &TriangleBvh,
+    mesh: &Mesh,
+    sc: &mut Scratch,
+) -> Repairs {
+    let input = Input { bvh, mesh, lines };
+    let mut turned = turned_faces(c, &input);
+    let mut r = Repairs {
+        turned: turned.len(),
+        ..Repairs::default()
+    };
+    let mut hs = Vec::new();
+    for _ in 0..MAX_ROUNDS {
+        let mut repaired = 0;
+        for f in turned {
+            if c.face_dead[f] || input.face_agrees(c, f) {
+                continue;
+            }
+            if try_flips(c, f, &input, sc) {
+                r.flips += 1;
+            } else if try_moves(c, f, &input, sc, &mut hs) {
+                r.moves += 1;
+            } else if try_collapses(c, f, &input, sc, &mut hs) {
+                r.collapses += 1;
+            } else {
+                continue;
+            }
+            repaired += 1;
+        }
+        turned = turned_faces(c, &input);
+        if repaired == 0 || turned.is_empty() {
+            break;
+        }
+    }
+    r.left = turned.len();
+    r.left_unmovable = turned
+        .iter()
+        .filter(|&&f| (0..3).all(|i| !movable(c, c.vtx[3 * f + i])))
+        .count();
+    r.left = turned.len();
+    r
+}
+
+/// The pass on a mesh `patches` made from `input` (closed, without texture coordinates;
+/// `triangle_origins` index `input`). Only where the pass changed something is the mesh
+/// rebuilt: its faces keep their origins, a flipped pair those of its two old faces.
+pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
+    let topo = Topology::new(&out);
+    let lines = Lines::new(&out, &topo, None);
+    let mut c = build::build(&out, &topo, &lines);
+    // `build` points each vertex at a face of `out`; the pass wants input triangles.
+    for t in c.vtri.iter_mut() {
+        *t = out.triangle_origin(*t as usize);
+    }
+    let bvh = TriangleBvh::new(input, (0..input.triangles.len() as u32).collect());
+    let r = repair(&mut c, &lines, &bvh, input, &mut Scratch::default());
+    if r.flips + r.moves + r.collapses == 0 {
+        return (out, r);
+    }
+    let mut index = vec![u32::MAX; c.pos.len()];
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for f in (0..c.face_count()).filter(|&f| !c.face_dead[f]) {
+        let tri = [0, 1, 2].map(|k| {
+            let v = c.vtx[3 * f + k] as usize;
+            if index[v] == u32::MAX {
+                index[v] = positions.len() as u32;
+                positions.push(c.pos[v]);
+            }
+            index[v]
+        });
+        triangles.push((tri, out.triangle_origin(f)));
+    }
+    (mesh_of(positions, triangles), r)
+}
+
+/// Flips the first edge of face `f` whose two new faces disagree with the input less than
+/// the two old ones.
+fn try_flips(c: &mut Corners, f: usize, input: &Input, sc: &mut Scratch) -> bool {
+    for h in (3 * f as u32)..(3 * f as u32 + 3) {
+        let g = c.opp[h as usize];
+        if g == NIL || !ops::can_flip_topologically(c, h, sc) {
+            continue;
+        }
+        let (a, b) = (c.vtx[h as usize], c.dest(h));
+        let (cc, d) = (c.vtx[prev(h) as usize], c.vtx[prev(g) as usize]);
+        let p = |v: u32| c.pos[v as usize];
+        let hint = c.vtri[cc as usize];
+        let before = [h, g]
+            .iter()
+            .filter(|&&k| !input.face_agrees(c, (k / 3) as usize))
+            .count();
+        let after = [[p(cc), p(a), p(d)], [p(d), p(b), p(cc)]]
+            .iter()
+            .filter(|&&q| !input.agrees(q, hint))
+            .count();
+        if after < before {
+            ops::flip(c, h);
+            return true;
+        }
+    }
+    false
+}
+
+/// Moves the first vertex of face `f` that can go somewhere where fewer faces around it
+/// disagree with the input: a free vertex to the input's closest point to the centroid of
+/// its fan or to itself, or halfway to the first; a line vertex to the point of its line
+/// closest to the middle of its two line neighbours, or halfway there.
+fn try_moves(
+    c: &mut Corners,
+    f: usize,
+    input: &Input,
+    sc: &mut Scratch,
+    hs: &mut Vec<u32>,
+) -> bool {
+    (0..3).any(|i| {
+        let v = c.vtx[3 * f + i];
+        match c.kind[v as usize] {
+            _ if c.locked[v as usize] => false,
+            VKind::Free => try_free_move(c, v, input, sc, hs),
+            VKind::Line => try_line_move(c, v, input, sc, hs),
+            VKind::Corner => false,
+        }
+    })
+}
+
+fn try_line_move(
+    c: &mut Corners,
+    v: u32,
+    input: &Input,
+    sc: &mut Scratch,
+    hs: &mut Vec<u32>,
+) -> bool {
+    let seg = c.vseg[v as usize];
+    let Some([x, y]) = ops::line_neighbours(c, v, sc) else {
+        return false;
+    };
+    if seg == NIL {
+        return false;
+    }
+    let here = c.pos[v as usize];
+    let before = fan_disagreements(c, v, here, input, hs);
+    let (on_line, seg) = input
+        .lines
+        .project(0.5 * (c.pos[x as usize] + c.pos[y as usize]), seg);
+    for target in [on_line, input.lines.project(0.5 * (here + on_line), seg).0] {
+        if fan_disagreements(c, v, target, input, hs) < before {
+            c.pos[v as usize] = target;
+            c.vseg[v as usize] = seg;
+            return true;
+        }
+    }
+    false
+}
+
+fn try_free_move(
+    c: &mut Corners,
+    v: u32,
+    input: &Input,
+    sc: &mut Scratch,
+    hs: &mut Vec<u32>,
+) -> bool {
+    {
+        let here = c.pos[v as usize];
+        let before = fan_disagreements(c, v, here, input, hs);
+        let (centroid, _) = ops::fan_centroid(c, v, sc);
+        let hint = c.vtri[v as usize];
+        for (query, halfway) in [(centroid, false), (centroid, true), (here, false)] {
+            let start = input.bvh.hit_on(query, hint);
+            let Some(hit) = input.bvh.closest(query, Some(start)) else {
+                continue;
+            };
+            let target = if halfway {
+                0.5 * (here + hit.point)
+            } else {
+                hit.point
+            };
+            if fan_disagreements(c, v, target, input, hs) < before {
+                c.pos[v as usize] = target;
+                c.vtri[v as usize] = hit.triangle;
+                return true;
+            }
+        }
+    }
+    false
+}
+
+fn movable(c: &Corners, v: u32) -> bool {
+    c.kind[v as usize] != VKind::Corner && !c.locked[v as usize]
+}
+
+/// With `v` at `p`, how many faces around it disagree with the input.
+fn fan_disagreements(c: &Corners, v: u32, p: DVec3, input: &Input, hs: &mut Vec<u32>) -> usize {
+    c.fan(v, hs);
+    hs.iter()
+        .filter(|&&h| {
+            let (x, y) = (c.dest(h), c.vtx[prev(h) as usize]);
+            !input.agrees(
+                [p, c.pos[x as usize], c.pos[y as usize]],
+                c.vtri[v as usize],
+            )
+        })
+        .count()
+}
+
+/// Collapses the first edge of face `f` (either way) after which fewer faces disagree with
+/// the input: the faces of the going vertex, the two removed ones among them.
+fn try_collapses(
+    c: &mut Corners,
+    f: usize,
+    input: &Input,
+    sc: &mut Scratch,
+    hs: &mut Vec<u32>,
+) -> bool {
+    for h in (3 * f as u32)..(3 * f as u32 + 3) {
+        let (a, b) = (c.vtx[h as usize], c.dest(h));
+        for (x, y) in [(a, b), (b, a)] {
+            if !ops::can_collapse_topologically(c, h, x, y, sc) {
+                continue;
+            }
+            let before = fan_disagreements(c, x, c.pos[x as usize], input, hs);
+            if collapse_disagreements(c, x, y, input, hs) < before {
+                ops::collapse(c, h, x, y, sc);
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// With `x` gone into `y`, how many of the faces of `x` that stay disagree with the input.
+fn collapse_disagreements(c: &Corners, x: u32, y: u32, input: &Input, hs: &mut Vec<u32>) -> usize {
+    let py = c.pos[y as usize];
+    c.fan(x, hs);
+    hs.iter()
+        .filter(|&&h| {
+            let (u, w) = (c.dest(h), c.vtx[prev(h) as usize]);
+            u != y
+                && w != y
+                && !input.agrees(
+                    [py, c.pos[u as usize], c.pos[w as usize]],
+                    c.vtri[y as usize],
+                )
+        })
+        .count()
+}
