@@ -91,9 +91,10 @@ pub fn can_collapse(
     sizing: &Sizing,
     sc: &mut Scratch,
 ) -> bool {
-    if !can_collapse_topologically(c, h, a, b, sc) {
+    if !collapse_may_start(c, h, a, b, sc) {
         return false;
     }
+    // The cheap length bound before the link condition: it rejects most candidates.
     let pb = c.pos[b as usize];
     c.ring(a, &mut sc.hs, &mut sc.ring_a);
     if sc
@@ -103,13 +104,18 @@ pub fn can_collapse(
     {
         return false;
     }
-    faces_ok(c, a, b, sc)
+    link_ok(c, a, b, sc) && faces_ok(c, a, b, sc)
 }
 
-/// The checks of [`can_collapse`] that do not look at positions: neither vertex locked,
-/// `a` free to go along `h` (a line vertex only along its line, a border vertex only along
-/// the border), the removed faces' sides, and the link condition.
+/// The checks of [`can_collapse`] that do not look at positions: see
+/// [`collapse_may_start`], and the link condition.
 pub fn can_collapse_topologically(c: &Corners, h: u32, a: u32, b: u32, sc: &mut Scratch) -> bool {
+    collapse_may_start(c, h, a, b, sc) && link_ok(c, a, b, sc)
+}
+
+/// Neither vertex locked, `a` free to go along `h` (a line vertex only along its line, a
+/// border vertex only along the border), and the removed faces' sides.
+fn collapse_may_start(c: &Corners, h: u32, a: u32, b: u32, sc: &mut Scratch) -> bool {
     if c.locked[a as usize] || c.locked[b as usize] || c.kind[a as usize] == VKind::Corner {
         return false;
     }
@@ -121,10 +127,7 @@ pub fn can_collapse_topologically(c: &Corners, h: u32, a: u32, b: u32, sc: &mut 
         return false;
     }
     let g = c.opp[h as usize];
-    if !sides_ok(c, h, sc) || (g != NIL && !sides_ok(c, g, sc)) {
-        return false;
-    }
-    link_ok(c, a, b, sc)
+    sides_ok(c, h, sc) && (g == NIL || sides_ok(c, g, sc))
 }
 
 /// A face removed by a collapse: its two other edges are not both constrained (they

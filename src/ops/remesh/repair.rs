@@ -14,8 +14,9 @@
 //! its fan or to itself, or halfway to the first; a line vertex along its line towards the
 //! middle of its line neighbours); collapse one of its edges under the remesher's
 //! topological rules. A face's agreement depends on its own corners only, so each repair
-//! lowers the number of disagreeing faces and the pass ends; it goes round again while a
-//! round repairs something, since a repair can change what is closest to a neighbour.
+//! lowers the number of disagreeing faces and the pass ends. It goes round again, over the
+//! faces still turned and those around what changed, while a round repairs something: a
+//! face that could not be repaired may be once its neighbours have moved.
 //!
 //! What it cannot repair is left and counted: where the input folds over itself (james's
 //! ragged border, where a quarter to four fifths of the input triangles within two edge
@@ -110,25 +111,39 @@ pub fn repair(
         ..Repairs::default()
     };
     let mut hs = Vec::new();
+    let mut moved = Vec::new();
     for _ in 0..MAX_ROUNDS {
-        let mut repaired = 0;
-        for f in turned {
+        moved.clear();
+        for &f in &turned {
             if c.face_dead[f] || input.face_agrees(c, f) {
                 continue;
             }
-            if try_flips(c, f, &input, sc) {
+            if try_flips(c, f, &input, sc, &mut moved) {
                 r.flips += 1;
-            } else if try_moves(c, f, &input, sc, &mut hs) {
+            } else if try_moves(c, f, &input, sc, &mut hs, &mut moved) {
                 r.moves += 1;
-            } else if try_collapses(c, f, &input, sc, &mut hs) {
+            } else if try_collapses(c, f, &input, sc, &mut hs, &mut moved) {
                 r.collapses += 1;
-            } else {
-                continue;
             }
-            repaired += 1;
         }
-        turned = turned_faces(c, &input);
-        if repaired == 0 || turned.is_empty() {
+        if moved.is_empty() {
+            break;
+        }
+        // Only the faces around a changed vertex can have changed their agreement.
+        let mut candidates = turned;
+        for &v in &moved {
+            if !c.vertex_dead[v as usize] {
+                c.fan(v, &mut hs);
+                candidates.extend(hs.iter().map(|&h| (h / 3) as usize));
+            }
+        }
+        candidates.sort_unstable();
+        candidates.dedup();
+        turned = candidates
+            .into_iter()
+            .filter(|&f| !c.face_dead[f] && !input.face_agrees(c, f))
+            .collect();
+        if turned.is_empty() {
             break;
         }
     }
@@ -137,7 +152,6 @@ pub fn repair(
         .iter()
         .filter(|&&f| (0..3).all(|i| !movable(c, c.vtx[3 * f + i])))
         .count();
-    r.left = turned.len();
     r
 }
 
@@ -176,7 +190,13 @@ pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
 
 /// Flips the first edge of face `f` whose two new faces disagree with the input less than
 /// the two old ones.
-fn try_flips(c: &mut Corners, f: usize, input: &Input, sc: &mut Scratch) -> bool {
+fn try_flips(
+    c: &mut Corners,
+    f: usize,
+    input: &Input,
+    sc: &mut Scratch,
+    moved: &mut Vec<u32>,
+) -> bool {
     for h in (3 * f as u32)..(3 * f as u32 + 3) {
         let g = c.opp[h as usize];
         if g == NIL || !ops::can_flip_topologically(c, h, sc) {
@@ -196,6 +216,7 @@ fn try_flips(c: &mut Corners, f: usize, input: &Input, sc: &mut Scratch) -> bool
             .count();
         if after < before {
             ops::flip(c, h);
+            moved.extend([a, b, cc, d]);
             return true;
         }
     }
@@ -212,15 +233,20 @@ fn try_moves(
     input: &Input,
     sc: &mut Scratch,
     hs: &mut Vec<u32>,
+    moved: &mut Vec<u32>,
 ) -> bool {
     (0..3).any(|i| {
         let v = c.vtx[3 * f + i];
-        match c.kind[v as usize] {
+        let done = match c.kind[v as usize] {
             _ if c.locked[v as usize] => false,
             VKind::Free => try_free_move(c, v, input, sc, hs),
             VKind::Line => try_line_move(c, v, input, sc, hs),
             VKind::Corner => false,
+        };
+        if done {
+            moved.push(v);
         }
+        done
     })
 }
 
@@ -311,6 +337,7 @@ fn try_collapses(
     input: &Input,
     sc: &mut Scratch,
     hs: &mut Vec<u32>,
+    moved: &mut Vec<u32>,
 ) -> bool {
     for h in (3 * f as u32)..(3 * f as u32 + 3) {
         let (a, b) = (c.vtx[h as usize], c.dest(h));
@@ -321,6 +348,7 @@ fn try_collapses(
             let before = fan_disagreements(c, x, c.pos[x as usize], input, hs);
             if collapse_disagreements(c, x, y, input, hs) < before {
                 ops::collapse(c, h, x, y, sc);
+                moved.push(y);
                 return true;
             }
         }
