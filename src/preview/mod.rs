@@ -273,7 +273,7 @@ fn render_with(
 
 /// The distance panel's figures: each result vertex's distance to the input in % of the
 /// input's bounding-box diagonal, its maximum and 99th percentile, and the colour scale
-/// (the 99th percentile rounded up to a readable number).
+/// (the 99th percentile rounded up to a readable number, at least [`MIN_SCALE_PERCENT`]).
 struct Heat {
     percents: Vec<f64>,
     max_percent: f64,
@@ -305,7 +305,7 @@ impl Heat {
         };
         let max_percent = percent(distances.iter().copied().fold(0.0, f64::max));
         let p99_percent = percent(crate::metrics::percentile(&distances, 0.99));
-        let (scale_percent, scale_label) = nice_ceil(p99_percent);
+        let (scale_percent, scale_label) = nice_ceil(p99_percent.max(MIN_SCALE_PERCENT));
         Ok(Heat {
             percents: distances.iter().map(|&d| percent(d)).collect(),
             max_percent,
@@ -315,6 +315,11 @@ impl Heat {
         })
     }
 }
+
+/// The colour bar never tops out below this (% of the diagonal). A remesh or a step that
+/// leaves vertices on the input puts them there to rounding (10⁻¹⁴ %): a bar scaled to that
+/// would colour rounding noise and label it "0.000000000000005%".
+const MIN_SCALE_PERCENT: f64 = 0.001;
 
 /// The panels' titles, the maximum distance and the colour bar.
 fn draw_labels(image: &mut RgbImage, layout: &Layout, size: u32, heat: &Heat) {

@@ -108,10 +108,27 @@ fn a_textured_quad_shows_its_texture_right_way_up() {
 }
 
 #[test]
+fn distance_panel_of_vertices_on_the_input_does_not_scale_to_rounding() {
+    // A remesh puts its vertices on the input to rounding; the bar must not colour that.
+    let m = uv_sphere(1.0, 24, 32);
+    let mut r = m.clone();
+    for p in &mut r.positions {
+        *p *= 1.0 + 1e-15;
+    }
+    let p = render(&m, &r, &options(256, 1)).unwrap();
+    assert!(p.figures.max_percent > 0.0 && p.figures.max_percent < 1e-10);
+    assert_eq!(p.figures.scale_percent, 0.001);
+}
+
+#[test]
 fn distance_panel_of_a_mesh_against_itself_is_all_zero_colour() {
     let m = uv_sphere(1.0, 24, 32);
     let p = render(&m, &m, &options(256, 1)).unwrap();
-    assert_eq!((p.figures.max_percent, p.figures.scale_percent), (0.0, 0.0));
+    // The bar keeps a readable top (MIN_SCALE_PERCENT) and every vertex is at its bottom.
+    assert_eq!(
+        (p.figures.max_percent, p.figures.scale_percent),
+        (0.0, 0.001)
+    );
     let zero = ramp::viridis(0.0);
     let rows = mesh_rows(256);
     let mut drawn = 0;
