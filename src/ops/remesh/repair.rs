@@ -110,38 +110,42 @@ pub fn repair(
         turned: turned.len(),
         ..Repairs::default()
     };
-    let mut hs = Vec::new();
-    let mut moved = Vec::new();
+    let mut pass = Pass {
+        input,
+        sc,
+        hs: Vec::new(),
+        moved: Vec::new(),
+    };
     for _ in 0..MAX_ROUNDS {
-        moved.clear();
+        pass.moved.clear();
         for &f in &turned {
-            if c.face_dead[f] || input.face_agrees(c, f) {
+            if c.face_dead[f] || pass.input.face_agrees(c, f) {
                 continue;
             }
-            if try_flips(c, f, &input, sc, &mut moved) {
+            if pass.try_flips(c, f) {
                 r.flips += 1;
-            } else if try_moves(c, f, &input, sc, &mut hs, &mut moved) {
+            } else if pass.try_moves(c, f) {
                 r.moves += 1;
-            } else if try_collapses(c, f, &input, sc, &mut hs, &mut moved) {
+            } else if pass.try_collapses(c, f) {
                 r.collapses += 1;
             }
         }
-        if moved.is_empty() {
+        if pass.moved.is_empty() {
             break;
         }
         // Only the faces around a changed vertex can have changed their agreement.
         let mut candidates = turned;
-        for &v in &moved {
+        for &v in &pass.moved {
             if !c.vertex_dead[v as usize] {
-                c.fan(v, &mut hs);
-                candidates.extend(hs.iter().map(|&h| (h / 3) as usize));
+                c.fan(v, &mut pass.hs);
+                candidates.extend(pass.hs.iter().map(|&h| (h / 3) as usize));
             }
         }
         candidates.sort_unstable();
         candidates.dedup();
         turned = candidates
             .into_iter()
-            .filter(|&f| !c.face_dead[f] && !input.face_agrees(c, f))
+            .filter(|&f| !c.face_dead[f] && !pass.input.face_agrees(c, f))
             .collect();
         if turned.is_empty() {
             break;
@@ -188,112 +192,95 @@ pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
     (mesh_of(positions, triangles), r)
 }
 
-/// Flips the first edge of face `f` whose two new faces disagree with the input less than
-/// the two old ones.
-fn try_flips(
-    c: &mut Corners,
-    f: usize,
-    input: &Input,
-    sc: &mut Scratch,
-    moved: &mut Vec<u32>,
-) -> bool {
-    for h in (3 * f as u32)..(3 * f as u32 + 3) {
-        let g = c.opp[h as usize];
-        if g == NIL || !ops::can_flip_topologically(c, h, sc) {
-            continue;
-        }
-        let (a, b) = (c.vtx[h as usize], c.dest(h));
-        let (cc, d) = (c.vtx[prev(h) as usize], c.vtx[prev(g) as usize]);
-        let p = |v: u32| c.pos[v as usize];
-        let hint = c.vtri[cc as usize];
-        let before = [h, g]
-            .iter()
-            .filter(|&&k| !input.face_agrees(c, (k / 3) as usize))
-            .count();
-        let after = [[p(cc), p(a), p(d)], [p(d), p(b), p(cc)]]
-            .iter()
-            .filter(|&&q| !input.agrees(q, hint))
-            .count();
-        if after < before {
-            ops::flip(c, h);
-            moved.extend([a, b, cc, d]);
-            return true;
-        }
-    }
-    false
+/// One pass's working state: the input, and scratch shared by the repairs.
+struct Pass<'a> {
+    input: Input<'a>,
+    sc: &'a mut Scratch,
+    hs: Vec<u32>,
+    /// Vertices whose faces a repair of this round changed.
+    moved: Vec<u32>,
 }
 
-/// Moves the first vertex of face `f` that can go somewhere where fewer faces around it
-/// disagree with the input: a free vertex to the input's closest point to the centroid of
-/// its fan or to itself, or halfway to the first; a line vertex to the point of its line
-/// closest to the middle of its two line neighbours, or halfway there.
-fn try_moves(
-    c: &mut Corners,
-    f: usize,
-    input: &Input,
-    sc: &mut Scratch,
-    hs: &mut Vec<u32>,
-    moved: &mut Vec<u32>,
-) -> bool {
-    (0..3).any(|i| {
-        let v = c.vtx[3 * f + i];
-        let done = match c.kind[v as usize] {
-            _ if c.locked[v as usize] => false,
-            VKind::Free => try_free_move(c, v, input, sc, hs),
-            VKind::Line => try_line_move(c, v, input, sc, hs),
-            VKind::Corner => false,
+impl Pass<'_> {
+    /// Flips the first edge of face `f` whose two new faces disagree with the input less
+    /// than the two old ones.
+    fn try_flips(&mut self, c: &mut Corners, f: usize) -> bool {
+        for h in (3 * f as u32)..(3 * f as u32 + 3) {
+            let g = c.opp[h as usize];
+            if g == NIL || !ops::can_flip_topologically(c, h, self.sc) {
+                continue;
+            }
+            let (a, b) = (c.vtx[h as usize], c.dest(h));
+            let (cc, d) = (c.vtx[prev(h) as usize], c.vtx[prev(g) as usize]);
+            let p = |v: u32| c.pos[v as usize];
+            let hint = c.vtri[cc as usize];
+            let before = [h, g]
+                .iter()
+                .filter(|&&k| !self.input.face_agrees(c, (k / 3) as usize))
+                .count();
+            let after = [[p(cc), p(a), p(d)], [p(d), p(b), p(cc)]]
+                .iter()
+                .filter(|&&q| !self.input.agrees(q, hint))
+                .count();
+            if after < before {
+                ops::flip(c, h);
+                self.moved.extend([a, b, cc, d]);
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Moves the first vertex of face `f` that can go somewhere where fewer faces around it
+    /// disagree with the input: a free vertex to the input's closest point to the centroid
+    /// of its fan or to itself, or halfway to the first; a line vertex to the point of its
+    /// line closest to the middle of its two line neighbours, or halfway there.
+    fn try_moves(&mut self, c: &mut Corners, f: usize) -> bool {
+        (0..3).any(|i| {
+            let v = c.vtx[3 * f + i];
+            let done = match c.kind[v as usize] {
+                _ if c.locked[v as usize] => false,
+                VKind::Free => self.try_free_move(c, v),
+                VKind::Line => self.try_line_move(c, v),
+                VKind::Corner => false,
+            };
+            if done {
+                self.moved.push(v);
+            }
+            done
+        })
+    }
+
+    fn try_line_move(&mut self, c: &mut Corners, v: u32) -> bool {
+        let seg = c.vseg[v as usize];
+        let Some([x, y]) = ops::line_neighbours(c, v, self.sc) else {
+            return false;
         };
-        if done {
-            moved.push(v);
+        if seg == NIL {
+            return false;
         }
-        done
-    })
-}
-
-fn try_line_move(
-    c: &mut Corners,
-    v: u32,
-    input: &Input,
-    sc: &mut Scratch,
-    hs: &mut Vec<u32>,
-) -> bool {
-    let seg = c.vseg[v as usize];
-    let Some([x, y]) = ops::line_neighbours(c, v, sc) else {
-        return false;
-    };
-    if seg == NIL {
-        return false;
-    }
-    let here = c.pos[v as usize];
-    let before = fan_disagreements(c, v, here, input, hs);
-    let (on_line, seg) = input
-        .lines
-        .project(0.5 * (c.pos[x as usize] + c.pos[y as usize]), seg);
-    for target in [on_line, input.lines.project(0.5 * (here + on_line), seg).0] {
-        if fan_disagreements(c, v, target, input, hs) < before {
-            c.pos[v as usize] = target;
-            c.vseg[v as usize] = seg;
-            return true;
-        }
-    }
-    false
-}
-
-fn try_free_move(
-    c: &mut Corners,
-    v: u32,
-    input: &Input,
-    sc: &mut Scratch,
-    hs: &mut Vec<u32>,
-) -> bool {
-    {
         let here = c.pos[v as usize];
-        let before = fan_disagreements(c, v, here, input, hs);
-        let (centroid, _) = ops::fan_centroid(c, v, sc);
+        let before = self.disagreements(c, v, here, None);
+        let lines = self.input.lines;
+        let (on_line, seg) = lines.project(0.5 * (c.pos[x as usize] + c.pos[y as usize]), seg);
+        for target in [on_line, lines.project(0.5 * (here + on_line), seg).0] {
+            if self.disagreements(c, v, target, None) < before {
+                c.pos[v as usize] = target;
+                c.vseg[v as usize] = seg;
+                return true;
+            }
+        }
+        false
+    }
+
+    fn try_free_move(&mut self, c: &mut Corners, v: u32) -> bool {
+        let here = c.pos[v as usize];
+        let before = self.disagreements(c, v, here, None);
+        let (centroid, _) = ops::fan_centroid(c, v, self.sc);
         let hint = c.vtri[v as usize];
+        let bvh = self.input.bvh;
         for (query, halfway) in [(centroid, false), (centroid, true), (here, false)] {
-            let start = input.bvh.hit_on(query, hint);
-            let Some(hit) = input.bvh.closest(query, Some(start)) else {
+            let Some(hit) = bvh.closest(query, Some(bvh.hit_on(query, hint))) else {
                 continue;
             };
             let target = if halfway {
@@ -301,74 +288,53 @@ fn try_free_move(
             } else {
                 hit.point
             };
-            if fan_disagreements(c, v, target, input, hs) < before {
+            if self.disagreements(c, v, target, None) < before {
                 c.pos[v as usize] = target;
                 c.vtri[v as usize] = hit.triangle;
                 return true;
             }
         }
+        false
     }
-    false
+
+    /// Collapses the first edge of face `f` (either way) after which fewer faces disagree
+    /// with the input: the faces of the going vertex, the two removed ones among them.
+    fn try_collapses(&mut self, c: &mut Corners, f: usize) -> bool {
+        for h in (3 * f as u32)..(3 * f as u32 + 3) {
+            let (a, b) = (c.vtx[h as usize], c.dest(h));
+            for (x, y) in [(a, b), (b, a)] {
+                if !ops::can_collapse_topologically(c, h, x, y, self.sc) {
+                    continue;
+                }
+                let before = self.disagreements(c, x, c.pos[x as usize], None);
+                if self.disagreements(c, x, c.pos[y as usize], Some(y)) < before {
+                    ops::collapse(c, h, x, y, self.sc);
+                    self.moved.push(y);
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// With `v` at `p`, how many faces around it disagree with the input; with `into`, as
+    /// after `v` goes into that neighbour (the faces they share are gone).
+    fn disagreements(&mut self, c: &Corners, v: u32, p: DVec3, into: Option<u32>) -> usize {
+        let hint = c.vtri[into.unwrap_or(v) as usize];
+        c.fan(v, &mut self.hs);
+        self.hs
+            .iter()
+            .filter(|&&h| {
+                let (x, y) = (c.dest(h), c.vtx[prev(h) as usize]);
+                into.is_none_or(|n| x != n && y != n)
+                    && !self
+                        .input
+                        .agrees([p, c.pos[x as usize], c.pos[y as usize]], hint)
+            })
+            .count()
+    }
 }
 
 fn movable(c: &Corners, v: u32) -> bool {
     c.kind[v as usize] != VKind::Corner && !c.locked[v as usize]
-}
-
-/// With `v` at `p`, how many faces around it disagree with the input.
-fn fan_disagreements(c: &Corners, v: u32, p: DVec3, input: &Input, hs: &mut Vec<u32>) -> usize {
-    c.fan(v, hs);
-    hs.iter()
-        .filter(|&&h| {
-            let (x, y) = (c.dest(h), c.vtx[prev(h) as usize]);
-            !input.agrees(
-                [p, c.pos[x as usize], c.pos[y as usize]],
-                c.vtri[v as usize],
-            )
-        })
-        .count()
-}
-
-/// Collapses the first edge of face `f` (either way) after which fewer faces disagree with
-/// the input: the faces of the going vertex, the two removed ones among them.
-fn try_collapses(
-    c: &mut Corners,
-    f: usize,
-    input: &Input,
-    sc: &mut Scratch,
-    hs: &mut Vec<u32>,
-    moved: &mut Vec<u32>,
-) -> bool {
-    for h in (3 * f as u32)..(3 * f as u32 + 3) {
-        let (a, b) = (c.vtx[h as usize], c.dest(h));
-        for (x, y) in [(a, b), (b, a)] {
-            if !ops::can_collapse_topologically(c, h, x, y, sc) {
-                continue;
-            }
-            let before = fan_disagreements(c, x, c.pos[x as usize], input, hs);
-            if collapse_disagreements(c, x, y, input, hs) < before {
-                ops::collapse(c, h, x, y, sc);
-                moved.push(y);
-                return true;
-            }
-        }
-    }
-    false
-}
-
-/// With `x` gone into `y`, how many of the faces of `x` that stay disagree with the input.
-fn collapse_disagreements(c: &Corners, x: u32, y: u32, input: &Input, hs: &mut Vec<u32>) -> usize {
-    let py = c.pos[y as usize];
-    c.fan(x, hs);
-    hs.iter()
-        .filter(|&&h| {
-            let (u, w) = (c.dest(h), c.vtx[prev(h) as usize]);
-            u != y
-                && w != y
-                && !input.agrees(
-                    [py, c.pos[u as usize], c.pos[w as usize]],
-                    c.vtri[y as usize],
-                )
-        })
-        .count()
 }
