@@ -91,10 +91,10 @@ pub fn can_collapse(
     sizing: &Sizing,
     sc: &mut Scratch,
 ) -> bool {
-    if !collapse_may_start(c, h, a, b, sc) {
+    if !may_go(c, h, a, b) {
         return false;
     }
-    // The cheap length bound before the link condition: it rejects most candidates.
+    // The length bound first: one ring walk, and it rejects most candidates.
     let pb = c.pos[b as usize];
     c.ring(a, &mut sc.hs, &mut sc.ring_a);
     if sc
@@ -104,28 +104,27 @@ pub fn can_collapse(
     {
         return false;
     }
-    link_ok(c, a, b, sc) && faces_ok(c, a, b, sc)
+    removed_sides_ok(c, h, sc) && link_ok(c, a, b, sc) && faces_ok(c, a, b, sc)
 }
 
-/// The checks of [`can_collapse`] that do not look at positions: see
-/// [`collapse_may_start`], and the link condition.
+/// The checks of [`can_collapse`] that do not look at positions: [`may_go`], the removed
+/// faces' sides and the link condition.
 pub fn can_collapse_topologically(c: &Corners, h: u32, a: u32, b: u32, sc: &mut Scratch) -> bool {
-    collapse_may_start(c, h, a, b, sc) && link_ok(c, a, b, sc)
+    may_go(c, h, a, b) && removed_sides_ok(c, h, sc) && link_ok(c, a, b, sc)
 }
 
-/// Neither vertex locked, `a` free to go along `h` (a line vertex only along its line, a
-/// border vertex only along the border), and the removed faces' sides.
-fn collapse_may_start(c: &Corners, h: u32, a: u32, b: u32, sc: &mut Scratch) -> bool {
+/// Neither vertex locked, and `a` free to go along `h`: a line vertex only along its line,
+/// a border vertex only along the border.
+fn may_go(c: &Corners, h: u32, a: u32, b: u32) -> bool {
     if c.locked[a as usize] || c.locked[b as usize] || c.kind[a as usize] == VKind::Corner {
         return false;
     }
-    let constrained = c.is_constrained(h);
-    if c.kind[a as usize] == VKind::Line && !constrained {
-        return false;
-    }
-    if !constrained && c.is_border_vertex(a) {
-        return false;
-    }
+    // Along a constrained edge anything may go; off one, only a free vertex inside.
+    c.is_constrained(h) || (c.kind[a as usize] != VKind::Line && !c.is_border_vertex(a))
+}
+
+/// [`sides_ok`] for both faces the collapse of `h` removes.
+fn removed_sides_ok(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
     let g = c.opp[h as usize];
     sides_ok(c, h, sc) && (g == NIL || sides_ok(c, g, sc))
 }
