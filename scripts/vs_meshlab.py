@@ -36,10 +36,9 @@ import sys
 import tempfile
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+from side_by_side import REFERENCE, ROOT, SCANMILL, meshlab_in_child, reference_ms
+
 RECIPE = os.path.join(ROOT, "config", "recipes", "face-scan.toml")
-SCANMILL = os.path.join(ROOT, "target", "release", "scanmill")
-REFERENCE = os.path.join(ROOT, "target", "release", "examples", "machine_reference")
 DEFAULT_SCANS = [
     "face400k=/tmp/scans/face400k/face400k.obj",
     "coral400k=/tmp/scans/coral400k/coral400k.obj",
@@ -66,16 +65,7 @@ def meshlab_child(scan, out):
 
 
 def run_meshlab(scan, work):
-    out = os.path.join(work, "meshlab", "out.obj")
-    shutil.rmtree(os.path.dirname(out), ignore_errors=True)
-    os.makedirs(os.path.dirname(out))
-    done = subprocess.run(
-        [sys.executable, os.path.abspath(__file__), "--meshlab-child", scan, out],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    seconds, faces = done.stdout.split()[-2:]
+    seconds, faces = meshlab_in_child(__file__, scan, os.path.join(work, "meshlab", "out.obj"))
     return float(seconds), int(faces)
 
 
@@ -114,11 +104,6 @@ def step_times(report):
     steps = sum(s["wall_ms"] for s in report["steps"])
     times["tail"] = report["total_ms"] - report["load_ms"] - steps
     return times
-
-
-def reference_ms():
-    done = subprocess.run([REFERENCE], check=True, capture_output=True, text=True)
-    return float(done.stdout.strip())
 
 
 def spread(values):

@@ -53,10 +53,9 @@ import sys
 import tempfile
 import time
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SCANMILL = os.path.join(ROOT, "target", "release", "scanmill")
-REFERENCE = os.path.join(ROOT, "target", "release", "examples", "machine_reference")
-QUALITY = os.path.join(ROOT, "target", "release", "examples", "remesh_quality")
+from side_by_side import REFERENCE, RELEASE, ROOT, SCANMILL, meshlab_in_child, reference_ms
+
+QUALITY = os.path.join(RELEASE, "examples", "remesh_quality")
 DEFAULT_DATA = os.path.join(os.path.dirname(ROOT), "shared", "data")
 # name, scan under the data folder, texture for `--texture` (an OBJ that names no MTL).
 DEFAULT_SCANS = [
@@ -105,15 +104,7 @@ def meshlab_child(scan, out):
 def run_meshlab(scan, work):
     """Seconds load to save, the filter's seconds, and the output's path."""
     out = os.path.join(work, "meshlab", "out.ply")
-    shutil.rmtree(os.path.dirname(out), ignore_errors=True)
-    os.makedirs(os.path.dirname(out))
-    done = subprocess.run(
-        [sys.executable, os.path.abspath(__file__), "--meshlab-child", scan, out],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    seconds, filter_seconds, _faces = done.stdout.split()[-3:]
+    seconds, filter_seconds, _faces = meshlab_in_child(__file__, scan, out)
     return float(seconds), float(filter_seconds), out
 
 
@@ -138,11 +129,6 @@ def run_scanmill(scan, texture, recipe, work):
 def quality(scan, result):
     done = subprocess.run([QUALITY, scan, result], check=True, capture_output=True, text=True)
     return json.loads(done.stdout)
-
-
-def reference_ms():
-    done = subprocess.run([REFERENCE], check=True, capture_output=True, text=True)
-    return float(done.stdout.strip())
 
 
 def seconds(values):

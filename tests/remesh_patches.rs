@@ -9,7 +9,6 @@ mod common;
 use glam::DVec3;
 use scanmill::mesh::{Mesh, Topology};
 use scanmill::metrics::distance::vertex_distances;
-use scanmill::metrics::surface::SurfaceIndex;
 use scanmill::metrics::volume::volume;
 use scanmill::ops::remesh::{Method, RemeshParams, remesh};
 use std::collections::HashMap;
@@ -139,12 +138,6 @@ struct Figures {
     flipped: f64,
 }
 
-fn distance_to_triangle(p: DVec3, [a, b, c]: [DVec3; 3]) -> f64 {
-    scanmill::geom::closest_on_triangle(p, a, b, c)
-        .0
-        .distance(p)
-}
-
 /// Remeshes and checks: closed, manifold, consistently oriented, same Euler
 /// characteristic, finite, and the share of triangles facing against the input's nearest
 /// triangle below `max_flipped`.
@@ -168,25 +161,7 @@ fn run_checked(input: &Mesh, p: &RemeshParams, max_flipped: f64) -> (Mesh, Figur
     );
     assert_eq!(to.euler_characteristic(), ti.euler_characteristic());
     assert_eq!(to.component_count(), ti.component_count());
-    // Triangles facing against the input: each output triangle's normal against the input
-    // triangle closest to its centroid (the metrics' reading, the rule the step repairs by)
-    // and against every other input triangle as close (at a sharp edge of the cube two
-    // are, and which one a search finds is arbitrary).
-    let index = SurfaceIndex::new(input, "input").unwrap();
-    let tie = 1e-9 * input.bounding_box_diagonal();
-    let against = (0..out.triangles.len())
-        .filter(|&t| {
-            let c = out.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
-            let n = out.triangle_cross(t);
-            let closest = index.closest(c);
-            n.dot(input.triangle_cross(closest.on.triangle as usize)) < 0.0
-                && (0..input.triangles.len()).all(|u| {
-                    n.dot(input.triangle_cross(u)) < 0.0
-                        || distance_to_triangle(c, input.triangle_positions(u))
-                            > closest.distance + tie
-                })
-        })
-        .count();
+    let against = common::faces_against(input, &out).len();
     let patches = report.patches.as_ref().unwrap();
     assert!(against <= patches.turned.left, "the report counts them");
     assert_eq!(

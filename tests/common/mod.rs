@@ -66,3 +66,34 @@ pub fn scan_folder(files: &[(&str, &[u8])]) -> (tempfile::TempDir, PathBuf) {
     let first = dir.path().join(files[0].0);
     (dir, first)
 }
+
+/// The centroid of triangle `t` of `m`.
+pub fn centroid(m: &Mesh, t: usize) -> glam::DVec3 {
+    m.triangle_positions(t).iter().sum::<glam::DVec3>() / 3.0
+}
+
+/// The triangles of `out` that face against `input`: against the input triangle closest to
+/// their centroid (the metrics' reading, and the rule the remesher's repair pass works by)
+/// and against every other input triangle as close (at a sharp edge two are, and which one
+/// a search finds is arbitrary).
+pub fn faces_against(input: &Mesh, out: &Mesh) -> Vec<usize> {
+    let index = scanmill::metrics::surface::SurfaceIndex::new(input, "input").unwrap();
+    let tie = 1e-9 * input.bounding_box_diagonal();
+    let distance = |p: glam::DVec3, u: usize| {
+        let [a, b, c] = input.triangle_positions(u);
+        scanmill::geom::closest_on_triangle(p, a, b, c)
+            .0
+            .distance(p)
+    };
+    (0..out.triangles.len())
+        .filter(|&t| {
+            let c = centroid(out, t);
+            let n = out.triangle_cross(t);
+            let closest = index.closest(c);
+            n.dot(input.triangle_cross(closest.on.triangle as usize)) < 0.0
+                && (0..input.triangles.len()).all(|u| {
+                    n.dot(input.triangle_cross(u)) < 0.0 || distance(c, u) > closest.distance + tie
+                })
+        })
+        .collect()
+}

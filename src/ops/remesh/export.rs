@@ -89,6 +89,42 @@ impl<'a> ChartIndex<'a> {
     }
 }
 
+/// The working mesh's live faces, and its live vertices numbered in order of first use.
+pub struct Live {
+    pub faces: Vec<usize>,
+    /// Working vertex of each output vertex.
+    pub vertices: Vec<u32>,
+    /// Output vertex of each working vertex (`u32::MAX` for a dead one).
+    pub index: Vec<u32>,
+}
+
+impl Live {
+    pub fn of(c: &Corners) -> Live {
+        let faces: Vec<usize> = (0..c.face_count()).filter(|&f| !c.face_dead[f]).collect();
+        let mut index = vec![u32::MAX; c.pos.len()];
+        let mut vertices = Vec::new();
+        for &f in &faces {
+            for k in 0..3 {
+                let v = c.vtx[3 * f + k] as usize;
+                if index[v] == u32::MAX {
+                    index[v] = vertices.len() as u32;
+                    vertices.push(v as u32);
+                }
+            }
+        }
+        Live {
+            faces,
+            vertices,
+            index,
+        }
+    }
+
+    /// Face `f`'s corners as output vertices.
+    pub fn triangle(&self, c: &Corners, f: usize) -> [u32; 3] {
+        [0, 1, 2].map(|k| self.index[c.vtx[3 * f + k] as usize])
+    }
+}
+
 /// Builds the output mesh. `chart_of_input` is the chart label of each input triangle
 /// (the labels the working faces carry).
 pub fn export(
@@ -98,38 +134,28 @@ pub fn export(
     chart_of_input: &[u32],
     bvh: &TriangleBvh,
 ) -> Mesh {
-    let faces: Vec<usize> = (0..c.face_count()).filter(|&f| !c.face_dead[f]).collect();
-    let mut index = vec![u32::MAX; c.pos.len()];
-    let mut live = Vec::new();
-    for &f in &faces {
-        for k in 0..3 {
-            let v = c.vtx[3 * f + k] as usize;
-            if index[v] == u32::MAX {
-                index[v] = live.len() as u32;
-                live.push(v as u32);
-            }
-        }
-    }
+    let live = Live::of(c);
+    let faces = &live.faces;
     let charts = ChartIndex::new(input, chart_of_input, bvh);
-    let uvs = corner_uvs(c, lines, input, &charts, &faces);
+    let uvs = corner_uvs(c, lines, input, &charts, faces);
     let mut out = Mesh {
-        positions: live.iter().map(|&v| c.pos[v as usize]).collect(),
+        positions: live.vertices.iter().map(|&v| c.pos[v as usize]).collect(),
         materials: input.materials.clone(),
         ..Mesh::default()
     };
-    let mut wedges_at: Vec<Vec<Index>> = vec![Vec::new(); live.len()];
+    let mut wedges_at: Vec<Vec<Index>> = vec![Vec::new(); live.vertices.len()];
     for (i, &f) in faces.iter().enumerate() {
+        let vs = live.triangle(c, f);
         let tri = [0, 1, 2].map(|k| {
-            let v = index[c.vtx[3 * f + k] as usize];
             let uv = uvs.as_ref().and_then(|u| u[i][k]);
-            wedge(&mut out, &mut wedges_at[v as usize], v, uv)
+            wedge(&mut out, &mut wedges_at[vs[k] as usize], vs[k], uv)
         });
         out.triangles.push(tri);
     }
     if !input.triangle_materials.is_empty() {
         out.triangle_materials = faces.iter().map(|&f| c.material[f]).collect();
     }
-    let hints: Vec<u32> = live.iter().map(|&v| c.vtri[v as usize]).collect();
+    let hints: Vec<u32> = live.vertices.iter().map(|&v| c.vtri[v as usize]).collect();
     let face_charts: Vec<u32> = faces.iter().map(|&f| c.chart[f]).collect();
     out.triangle_origins = origins(&out, &charts, &face_charts, &hints);
     if !input.colors.is_empty() {

@@ -25,6 +25,7 @@
 
 use super::build;
 use super::corners::{Corners, NIL, VKind, prev};
+use super::export::Live;
 use super::lines::Lines;
 use super::ops::{self, Scratch};
 use super::patches::tessellate::mesh_of;
@@ -175,20 +176,13 @@ pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
     if r.flips + r.moves + r.collapses == 0 {
         return (out, r);
     }
-    let mut index = vec![u32::MAX; c.pos.len()];
-    let mut positions = Vec::new();
-    let mut triangles = Vec::new();
-    for f in (0..c.face_count()).filter(|&f| !c.face_dead[f]) {
-        let tri = [0, 1, 2].map(|k| {
-            let v = c.vtx[3 * f + k] as usize;
-            if index[v] == u32::MAX {
-                index[v] = positions.len() as u32;
-                positions.push(c.pos[v]);
-            }
-            index[v]
-        });
-        triangles.push((tri, out.triangle_origin(f)));
-    }
+    let live = Live::of(&c);
+    let positions = live.vertices.iter().map(|&v| c.pos[v as usize]).collect();
+    let triangles = live
+        .faces
+        .iter()
+        .map(|&f| (live.triangle(&c, f), out.triangle_origin(f)))
+        .collect();
     (mesh_of(positions, triangles), r)
 }
 
