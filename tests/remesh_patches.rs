@@ -309,6 +309,9 @@ fn the_recipe_check_refuses_mixed_parameters() {
     assert!(p.validate().is_err());
     assert!(params(Some(0.0), 2).validate().is_err());
     assert!(params(Some(0.1), 0).validate().is_err());
+    let mut p = params(Some(0.1), 2);
+    p.on_surface = true;
+    assert!(p.validate().is_err());
     let iso = RemeshParams {
         edge_fraction: Some(0.01),
         f: Some(0.1),

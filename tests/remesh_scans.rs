@@ -1,6 +1,7 @@
 //! Issue #24's isotropic remeshing on real scans at an edge length of 1 % of the diagonal:
 //! at least 99 % of triangles with a smallest angle of 30° or more, mean distance to the
-//! input no larger than MeshLab's (0.020 % of the diagonal, measured in the issue), no new
+//! input no larger than MeshLab's (0.020 % of the diagonal, measured in the issue; with the
+//! least-squares fit, the default, 10 % or more below keeping every vertex on the input), no new
 //! non-manifold edges, no cracks, texture coordinates in their charts, seam vertices on
 //! input seams, and, on the textured scans, texture colour deviation within 1 level RMS of
 //! the decimation to the same face count; no face turned against the input except where the
@@ -141,17 +142,32 @@ fn texture_like_decimation(rel: &str, mesh: &Mesh, out: &Mesh) {
     assert!(r <= d + 1.0, "{rel}: remesh {r} vs decimation {d}");
 }
 
+/// The least-squares fit (the default) leaves the result closer to the input than keeping
+/// every vertex on it (`on_surface = true`): 22–34 % closer on facefuns, james, the bunny
+/// and igea (docs/remeshing.md); at least 10 % here. Both pass all the checks above.
+fn fit_closer(rel: &str, mesh: &Mesh) {
+    let (_, fit_mean, _) = check_with(rel, mesh, &params(), true);
+    let on_surface = RemeshParams {
+        on_surface: true,
+        ..params()
+    };
+    let (_, on_mean, _) = check_with(rel, mesh, &on_surface, true);
+    assert!(
+        fit_mean <= 0.9 * on_mean,
+        "{rel}: mean distance {fit_mean} fitted, {on_mean} on the surface"
+    );
+}
+
 #[test]
 fn james() {
     let rel = "textured/james_face_stereo_capture/james.obj";
-    let mesh = common::scan(rel);
-    check(rel, &mesh);
+    fit_closer(rel, &common::scan(rel));
 }
 
 #[test]
 fn bunny() {
     let rel = "untextured/stanford_bunny/bun_zipper.ply";
-    check(rel, &common::scan(rel));
+    fit_closer(rel, &common::scan(rel));
 }
 
 #[test]

@@ -10,12 +10,14 @@
 //! depend on the thread count.
 
 use super::corners::{Corners, NIL, VKind, prev};
+use super::fit::{self, FitReport};
 use super::lines::Lines;
 use super::ops::{self, Scratch};
 use super::repair::{self, Repairs};
 use super::sizing::Sizing;
 use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
+use crate::mesh::topology::Topology;
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -27,6 +29,9 @@ pub struct Counts {
     pub collapses: usize,
     pub valence_flips: usize,
     pub angle_flips: usize,
+    /// The least-squares fit of the free vertices to the input ([`fit`]; zeros with
+    /// `on_surface`).
+    pub fit: FitReport,
     /// The last pass: faces turned against the input, and their repair ([`repair`]).
     pub turned: Repairs,
 }
@@ -361,16 +366,29 @@ fn projected(
     }
 }
 
-/// Runs `iterations` rounds towards the edge lengths of `sizing` (on `input`, the mesh
-/// `bvh` and `lines` were built from).
+/// The input as the passes see it: the mesh, its topology, its search tree and its lines.
+pub struct Input<'a> {
+    pub mesh: &'a Mesh,
+    pub topo: &'a Topology,
+    pub bvh: &'a TriangleBvh<'a>,
+    pub lines: &'a Lines,
+}
+
+/// Runs `iterations` rounds towards the edge lengths of `sizing`, then, with `fit`, fits
+/// the free vertices to the input, and last repairs faces turned against it.
 pub fn run(
     c: &mut Corners,
-    lines: &Lines,
-    bvh: &TriangleBvh,
-    input: &Mesh,
+    input: &Input,
     sizing: &mut Sizing,
     iterations: usize,
+    fit: bool,
 ) -> Counts {
+    let Input {
+        mesh,
+        topo,
+        bvh,
+        lines,
+    } = *input;
     let mut sc = Scratch::default();
     let mut counts = Counts::default();
     for _ in 0..iterations {
@@ -379,9 +397,12 @@ pub fn run(
         counts.valence_flips += equalize_valences(c, &mut sc);
         relax(c, sizing);
         project(c, lines, bvh);
-        sizing.follow(c, lines, input);
+        sizing.follow(c, lines, mesh);
         counts.angle_flips += flip_angles(c, &mut sc);
     }
-    counts.turned = repair::repair(c, lines, bvh, input, &mut sc);
+    if fit {
+        counts.fit = fit::fit(c, mesh, topo, bvh);
+    }
+    counts.turned = repair::repair(c, lines, bvh, mesh, &mut sc);
     counts
 }

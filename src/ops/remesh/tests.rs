@@ -51,6 +51,49 @@ fn sphere_stays_closed_manifold_unflipped_and_regular() {
     }
 }
 
+/// On a sphere every triangle of a remesh with its vertices on the surface is a chord,
+/// inside the sphere; the least-squares fit moves the vertices out by part of the sag, so
+/// that the triangles straddle the surface: their centroids come much closer to it, and no
+/// vertex goes farther out than the sag itself (L²/6 for equilateral triangles of side L on
+/// the unit sphere, 0.005 here).
+#[test]
+fn fit_straddles_a_sphere_instead_of_cutting_it() {
+    let mesh = shapes::uv_sphere(1.0, 48, 96);
+    let centroid_error = |out: &Mesh| {
+        let n = out.triangles.len() as f64;
+        (0..out.triangles.len())
+            .map(|t| {
+                let [a, b, c] = out.triangle_positions(t);
+                (((a + b + c) / 3.0).length() - 1.0).abs()
+            })
+            .sum::<f64>()
+            / n
+    };
+    let on = RemeshParams {
+        on_surface: true,
+        ..fraction(0.05)
+    };
+    let (on_out, on_report) = remesh(&mesh, &on).unwrap();
+    let (fit_out, fit_report) = remesh(&mesh, &fraction(0.05)).unwrap();
+    assert_eq!(on_report.counts.fit, fit::FitReport::default());
+    assert!(
+        fit_report.counts.fit.vertices > 0,
+        "{:?}",
+        fit_report.counts
+    );
+    let (e_on, e_fit) = (centroid_error(&on_out), centroid_error(&fit_out));
+    assert!(e_fit < 0.5 * e_on, "fit {e_fit} vs on the surface {e_on}");
+    let l = fit_report.edge_length;
+    for p in &fit_out.positions {
+        let r = p.length();
+        assert!(
+            r > 1.0 - 1e-3 && r < 1.0 + l * l / 6.0,
+            "{p}: radius {r}, L {l}"
+        );
+    }
+    assert_eq!(audit(&mesh, &fit_out).flipped_faces, 0);
+}
+
 #[test]
 fn grid_border_stays_on_the_border_and_texture_is_kept() {
     let mesh = shapes::grid(30, 30);
