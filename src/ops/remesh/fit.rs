@@ -30,10 +30,10 @@
 
 use super::corners::{Corners, NIL, VKind};
 use super::ops::{Scratch, fan_keeps_orientation};
+use super::walk;
 use crate::geom::bvh::TriangleBvh;
-use crate::geom::closest::closest_on_triangle;
 use crate::mesh::Mesh;
-use crate::mesh::topology::{NO_EDGE, Topology};
+use crate::mesh::topology::Topology;
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -110,7 +110,7 @@ fn feet(c: &Corners, input: &Mesh, topo: &Topology, bvh: &TriangleBvh) -> Vec<Op
             let foot = if tri == NIL {
                 bvh.closest(s, None)?.point
             } else {
-                walk(input, topo, tri, s)
+                walk::closest(input, topo, tri, s).0
             };
             (foot.distance(s) <= OUTLIER * longest).then_some(foot)
         })
@@ -159,44 +159,4 @@ fn step(
     } else {
         x
     }
-}
-
-/// Steps of [`walk`] at most (a centroid is within an edge of its corner's footprint).
-const MAX_WALK: usize = 64;
-
-/// The point of the input closest to `q` found by walking from triangle `start` to the edge
-/// neighbour with the closest point, until none is closer. A local search is all a centroid
-/// needs, a third of an edge from the triangle its corner was projected onto; it costs a
-/// fraction of a tree search (measured: the pass then adds 0–4 % to the step on james, the
-/// bunny and igea, against 8–28 % with the tree; docs/remeshing.md), and it stays on the
-/// sheet of the input the face lies on where the input folds.
-fn walk(input: &Mesh, topo: &Topology, start: u32, q: DVec3) -> DVec3 {
-    let closest = |t: u32| {
-        let [a, b, d] = input.triangle_positions(t as usize);
-        let p = closest_on_triangle(q, a, b, d).0;
-        (p.distance_squared(q), p)
-    };
-    let (mut t, (mut best, mut foot)) = (start, closest(start));
-    for _ in 0..MAX_WALK {
-        let mut next = NIL;
-        for e in topo.triangle_edges(t) {
-            if e == NO_EDGE {
-                continue;
-            }
-            for u in topo.edge_triangles(e) {
-                if u == t {
-                    continue;
-                }
-                let (d, p) = closest(u);
-                if d < best {
-                    (best, foot, next) = (d, p, u);
-                }
-            }
-        }
-        if next == NIL {
-            break;
-        }
-        t = next;
-    }
-    foot
 }

@@ -20,6 +20,7 @@ pub mod repair;
 pub mod sizing;
 #[cfg(test)]
 mod tests;
+pub mod walk;
 
 use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
