@@ -13,14 +13,16 @@
 //!
 //! with one sample per result triangle f: its centroid, weighted by its area A_f, r_f the
 //! signed distance from the centroid to its closest input point along the triangle's
-//! normal, and φ_v(f) = 1/3 v's barycentric weight there. (The degree-2 rule, three points
-//! per triangle at barycentrics (4, 1, 1)/6, was measured too: 1–6 % farther from the input
-//! with the same anchor, at three times the searches.) The closest input points are found
-//! once, before the rounds: the vertices move by a small fraction of an edge. Holding the
+//! normal, and φ_v(f) = 1/3 v's barycentric weight there. (More samples per triangle, or the
+//! input's own vertices as samples, cost more and came out no closer: docs/remeshing.md
+//! compares the variants.) The closest input points are found once, before the rounds, by
+//! a walk from where a corner was projected ([`walk`]): the vertices move by a small
+//! fraction of an edge. Holding the
 //! neighbours, the best offset is t_v = Σ A φ r / Σ A φ²; every vertex moves at once by
 //! [`DAMPING`] of it. The *anchor*, v's own footprint on the input at weight [`ANCHOR`] × a
-//! third of its fan's area, keeps the offsets small where the samples say little (without
-//! it, james's sparse, noisy parts come out farther). A centroid farther from the input
+//! third of its fan's area, keeps the offsets small where the samples say little: a few
+//! noisy samples would otherwise pull a vertex past the surface they straddle. A centroid
+//! farther from the input
 //! than [`OUTLIER`] × its triangle's longest edge sees another sheet of the input (a fold)
 //! and is left out. A move that would turn a face of the fan over is not made.
 //!
