@@ -36,6 +36,11 @@ fn bench(c: &mut Criterion) {
         adaptive: true,
         ..isotropic.clone()
     };
+    // The cost of the least-squares fit: the same runs with every vertex left on the input.
+    let on_surface = RemeshParams {
+        on_surface: true,
+        ..isotropic.clone()
+    };
     let patches = RemeshParams {
         method: Method::Patches,
         ..Default::default()
@@ -60,6 +65,16 @@ fn bench(c: &mut Criterion) {
             "isotropic igea",
             "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
             &isotropic,
+        ),
+        (
+            "isotropic james on_surface",
+            "textured/james_face_stereo_capture/james.obj",
+            &on_surface,
+        ),
+        (
+            "isotropic igea on_surface",
+            "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
+            &on_surface,
         ),
         (
             "isotropic adaptive facefuns",
