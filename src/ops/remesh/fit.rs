@@ -30,10 +30,9 @@
 //! where the surface is cut or creased, and a vertex moved off it would open a gap between
 //! texture charts.
 
-use super::corners::{Corners, NIL, VKind};
+use super::corners::{Corners, VKind};
 use super::ops::{Scratch, fan_keeps_orientation};
 use super::walk;
-use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
 use glam::DVec3;
@@ -60,9 +59,9 @@ const ANCHOR: f64 = 0.5;
 /// left out.
 const OUTLIER: f64 = 0.25;
 
-/// Fits the free vertices of `c`, projected onto the input of `bvh`.
-pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology, bvh: &TriangleBvh) -> FitReport {
-    let feet = feet(c, input, topo, bvh);
+/// Fits the free vertices of `c`, projected onto `input` (whose topology is `topo`).
+pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> FitReport {
+    let feet = feet(c, input, topo);
     let fitted: Vec<u32> = (0..c.pos.len() as u32)
         .filter(|&v| {
             let i = v as usize;
@@ -96,7 +95,7 @@ pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology, bvh: &TriangleBvh) ->
 
 /// The closest input point of every live face's centroid (`None` for a dead face or a
 /// centroid left out).
-fn feet(c: &Corners, input: &Mesh, topo: &Topology, bvh: &TriangleBvh) -> Vec<Option<DVec3>> {
+fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<Option<DVec3>> {
     (0..c.face_count())
         .into_par_iter()
         .map(|f| {
@@ -108,12 +107,9 @@ fn feet(c: &Corners, input: &Mesh, topo: &Topology, bvh: &TriangleBvh) -> Vec<Op
                 .map(|k| p[k].distance(p[(k + 1) % 3]))
                 .fold(0.0, f64::max);
             let s = (p[0] + p[1] + p[2]) / 3.0;
-            let tri = c.vtri[c.vtx[3 * f] as usize];
-            let foot = if tri == NIL {
-                bvh.closest(s, None)?.point
-            } else {
-                walk::closest(input, topo, tri, s).0
-            };
+            // Every vertex has the input triangle it was last projected onto (or, for an
+            // input vertex never moved, one of its own).
+            let foot = walk::closest(input, topo, c.vtri[c.vtx[3 * f] as usize], s);
             (foot.distance(s) <= OUTLIER * longest).then_some(foot)
         })
         .collect()

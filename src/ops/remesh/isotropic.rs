@@ -401,7 +401,7 @@ pub fn run(
         counts.angle_flips += flip_angles(c, &mut sc);
     }
     if fit {
-        counts.fit = fit::fit(c, mesh, topo, bvh);
+        counts.fit = fit::fit(c, mesh, topo);
     }
     counts.turned = repair::repair(c, lines, bvh, mesh, &mut sc);
     counts

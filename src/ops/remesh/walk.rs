@@ -1,5 +1,5 @@
 //! The closest point of the input near a known triangle, by a walk over the input's
-//! triangles: the search that projection and the fit make from where a vertex was last.
+//! triangles: the search the fit (`fit.rs`) makes from where a vertex was last projected.
 
 use super::corners::NIL;
 use crate::geom::closest::closest_on_triangle;
@@ -12,14 +12,14 @@ use glam::DVec3;
 const MAX_STEPS: usize = 64;
 
 /// The point of the input closest to `q` found by walking from triangle `start` to the
-/// neighbour with a closer point, until none is closer, and that point's triangle. A
+/// neighbour with a closer point, until none is closer. A
 /// neighbour is a triangle across an edge, or, when the closest point is a corner of the
 /// current triangle, any triangle around that corner (the closer point may be on a triangle
 /// that shares only the corner). The walk finds a local minimum of the distance: the
 /// closest point of the sheet of the input the search starts on, which is what a vertex
 /// that moved by less than an edge wants where the input folds over itself, and it costs a
 /// few closest-point tests where the tree search (`geom::bvh`) descends from the root.
-pub fn closest(input: &Mesh, topo: &Topology, start: u32, q: DVec3) -> (DVec3, u32) {
+pub fn closest(input: &Mesh, topo: &Topology, start: u32, q: DVec3) -> DVec3 {
     let on = |t: u32| {
         let [a, b, d] = input.triangle_positions(t as usize);
         let (p, w) = closest_on_triangle(q, a, b, d);
@@ -55,5 +55,5 @@ pub fn closest(input: &Mesh, topo: &Topology, start: u32, q: DVec3) -> (DVec3, u
         }
         (best, t, foot, w) = next;
     }
-    (foot, t)
+    foot
 }
