@@ -48,7 +48,7 @@ mod boundary;
 mod ring;
 #[cfg(test)]
 mod tests;
-mod union_find;
+pub(crate) mod union_find;
 
 pub use boundary::BoundaryChain;
 pub use ring::{OrderedRing, RingBuffers};

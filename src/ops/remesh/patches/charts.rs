@@ -605,7 +605,7 @@ mod tests {
     /// The layout and charts of a sphere with cells at spacing `f` of the diagonal.
     fn sphere_charts(f: f64) -> (Mesh, Layout, Charts) {
         let mesh = uv_sphere(1.0, 24, 48);
-        let input = checked_input(&mesh).unwrap();
+        let input = checked_input(&mesh, &mesh.topology()).unwrap();
         let seeds = cells::spaced_seeds(&input.graph, f * mesh.bounding_box_diagonal());
         let (layout, charts, _, _) = valid_layout(&input, seeds).unwrap();
         drop(input);

@@ -17,6 +17,7 @@
 pub mod bezier;
 pub mod cells;
 pub mod charts;
+pub mod defects;
 pub mod layout;
 pub mod quads;
 pub mod tessellate;
@@ -25,6 +26,7 @@ use super::repair::{self, Repairs};
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
 use cells::Graph;
+use defects::Defects;
 use serde::Serialize;
 use std::collections::HashMap;
 
@@ -100,6 +102,9 @@ pub struct PatchesReport {
     /// than itself), their repair (`remesh::repair`), and how many are left (0 on smooth
     /// shapes; a few at the narrowest creases of real scans).
     pub turned: Repairs,
+    /// Isolated non-manifold defects cut off before the remesh ([`defects`]); all zero on a
+    /// manifold input.
+    pub defects: Defects,
     pub texcoords_dropped: bool,
 }
 
@@ -110,7 +115,7 @@ pub enum PatchesError {
     )]
     Open(usize),
     #[error(
-        "method \"patches\" needs a manifold mesh; this one has {edges} non-manifold edges and {vertices} non-manifold vertices (repair it first, or use method = \"isotropic\")"
+        "method \"patches\" needs a manifold mesh; {edges} non-manifold edges and {vertices} non-manifold vertices remain where the surface touches itself (small parts hanging from such edges are left out, these are not; repair it first, or use method = \"isotropic\")"
     )]
     NonManifold { edges: usize, vertices: usize },
     #[error(
@@ -141,7 +146,23 @@ pub fn remesh(
     target_faces: Option<usize>,
     resolution: usize,
 ) -> Result<(Mesh, PatchesReport), PatchesError> {
-    let input = checked_input(mesh)?;
+    let texcoords_dropped = mesh.has_texcoords();
+    let topo = Topology::new(mesh);
+    let cut = defects::without_defects(mesh, &topo);
+    let (mesh, topo, defects) = match &cut {
+        Some((clean, defects)) => {
+            tracing::warn!(
+                non_manifold_edges = defects.non_manifold_edges,
+                non_manifold_vertices = defects.non_manifold_vertices,
+                sheets = defects.sheets_dropped,
+                triangles = defects.triangles_dropped,
+                "remesh patches: small parts joined to the mesh by non-manifold edges or vertices are left out"
+            );
+            (clean, Topology::new(clean), *defects)
+        }
+        None => (mesh, topo, Defects::default()),
+    };
+    let input = checked_input(mesh, &topo)?;
     let resolution = resolution.max(1);
     let (fraction, seeds) = choose_seeds(&input.graph, mesh, f, target_faces, resolution);
     let initial = seeds.len();
@@ -174,7 +195,8 @@ pub fn remesh(
         patches: fine.faces.len(),
         folded_chart_triangles: charts.folded,
         turned,
-        texcoords_dropped: mesh.has_texcoords(),
+        defects,
+        texcoords_dropped,
     };
     Ok((out, report))
 }
@@ -190,8 +212,7 @@ struct Input<'a> {
 }
 
 /// Refuses an open, non-manifold or inconsistently oriented mesh; otherwise its graph.
-fn checked_input(mesh: &Mesh) -> Result<Input<'_>, PatchesError> {
-    let topo = Topology::new(mesh);
+fn checked_input<'a>(mesh: &'a Mesh, topo: &Topology) -> Result<Input<'a>, PatchesError> {
     let open = topo.boundary_edges().count();
     if open > 0 {
         return Err(PatchesError::Open(open));
