@@ -111,6 +111,17 @@ impl Corners {
         }
     }
 
+    /// A half-edge of the edge a–b (a→b, or b→a where a→b is a border's missing side), if
+    /// there is that edge.
+    pub fn half_edge(&self, a: u32, b: u32, hs: &mut Vec<u32>) -> Option<u32> {
+        self.fan(a, hs);
+        if let Some(&h) = hs.iter().find(|&&h| self.dest(h) == b) {
+            return Some(h);
+        }
+        self.fan(b, hs);
+        hs.iter().copied().find(|&h| self.dest(h) == a)
+    }
+
     /// The neighbours of `v` in ring order (the last one of a border vertex closes no face).
     pub fn ring(&self, v: u32, hs: &mut Vec<u32>, ring: &mut Vec<u32>) {
         self.fan(v, hs);

@@ -49,41 +49,62 @@ fn canonical(c: &Corners, h: u32) -> bool {
     }
 }
 
-/// Splits every edge of the pass's start longer than its `sizing.hi` at its middle, halving
-/// it until it is not (new edges wait for the next iteration: this bounds the pass).
+/// Splits every edge longer than its `sizing.hi` at its middle, in passes over the edges
+/// until a pass splits none (at most [`SPLIT_PASSES`]), each edge at most once a pass, as
+/// pmp-library does: all long edges halve together, so the triangles stay shaped like their
+/// parents. Halving one edge again and again instead fans long slivers out of the vertex
+/// opposite it. More than one pass is also needed because a split hands the side opposite
+/// it to a new face: an edge whose two sides were both handed on during a pass is not met
+/// again in it (on a coarse cube whole sides stayed unsplit for three iterations that way).
 pub fn split_long(c: &mut Corners, lines: &Lines, sizing: &mut Sizing) -> usize {
     let mut n = 0;
-    let edges = c.vtx.len() as u32;
-    for h in 0..edges {
-        for _ in 0..MAX_HALVINGS {
-            if !canonical(c, h) {
-                break;
-            }
-            let (a, b) = (c.vtx[h as usize], c.dest(h));
-            let (pa, pb) = (c.pos[a as usize], c.pos[b as usize]);
-            if pa.distance(pb).partial_cmp(&sizing.hi(a, b)) != Some(std::cmp::Ordering::Greater)
-                || c.locked[a as usize]
-                || c.locked[b as usize]
-            {
-                break;
-            }
-            let mid = 0.5 * (pa + pb);
-            let seg = c.seg[h as usize];
-            let seg = if c.is_constrained(h) && seg != NIL {
-                lines.project(mid, seg).1
-            } else {
-                NIL
-            };
-            let m = ops::split(c, h, mid, seg);
-            sizing.split(a, b, m);
-            n += 1;
+    let mut hs = Vec::new();
+    for _ in 0..SPLIT_PASSES {
+        let pass = split_pass(c, lines, sizing, &mut hs);
+        n += pass;
+        if pass == 0 {
+            break;
         }
     }
     n
 }
 
-/// An edge is halved at most this many times in one pass.
-const MAX_HALVINGS: usize = 32;
+/// Split passes per iteration at most: enough to halve an edge 1,000-fold; what is left
+/// waits for the next iteration.
+const SPLIT_PASSES: usize = 10;
+
+/// Splits each edge that is longer than its `sizing.hi` when the pass starts, once. The
+/// edges are listed by their ends first: a split renumbers the half-edges next to it.
+fn split_pass(c: &mut Corners, lines: &Lines, sizing: &mut Sizing, hs: &mut Vec<u32>) -> usize {
+    let long: Vec<(u32, u32)> = (0..c.vtx.len() as u32)
+        .filter(|&h| canonical(c, h) && too_long(c, sizing, h))
+        .map(|h| (c.vtx[h as usize], c.dest(h)))
+        .collect();
+    for &(a, b) in &long {
+        let Some(h) = c.half_edge(a, b, hs) else {
+            continue;
+        };
+        let mid = 0.5 * (c.pos[a as usize] + c.pos[b as usize]);
+        let seg = c.seg[h as usize];
+        let seg = if c.is_constrained(h) && seg != NIL {
+            lines.project(mid, seg).1
+        } else {
+            NIL
+        };
+        let m = ops::split(c, h, mid, seg);
+        sizing.split(a, b, m);
+    }
+    long.len()
+}
+
+/// The edge of `h` is longer than its `sizing.hi`, and neither end is locked.
+fn too_long(c: &Corners, sizing: &Sizing, h: u32) -> bool {
+    let (a, b) = (c.vtx[h as usize], c.dest(h));
+    let length = c.pos[a as usize].distance(c.pos[b as usize]);
+    length.partial_cmp(&sizing.hi(a, b)) == Some(std::cmp::Ordering::Greater)
+        && !c.locked[a as usize]
+        && !c.locked[b as usize]
+}
 
 /// The vertex that should go: the one with the freer kind, `a` on a tie.
 fn order(c: &Corners, a: u32, b: u32) -> [(u32, u32); 2] {
