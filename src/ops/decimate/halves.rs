@@ -71,6 +71,12 @@ fn part(mesh: &Mesh, side: &[bool], keep: bool) -> Mesh {
     let mut vertex_map = vec![NONE; mesh.positions.len()];
     let mut texcoord_map = vec![NONE; mesh.texcoords.len()];
     let mut normal_map = vec![NONE; mesh.normals.len()];
+    let faces = side.iter().filter(|&&s| s == keep).count();
+    m.triangles.reserve_exact(faces);
+    m.triangle_origins.reserve_exact(faces);
+    if !mesh.triangle_materials.is_empty() {
+        m.triangle_materials.reserve_exact(faces);
+    }
     // The new index of element `i` (`fresh` if this is its first use).
     let new_index = |map: &mut [Index], i: Index, next: usize| -> (Index, bool) {
         let fresh = map[i as usize] == NONE;
@@ -119,6 +125,13 @@ fn part(mesh: &Mesh, side: &[bool], keep: bool) -> Mesh {
         }
         m.triangle_origins.push(t as Index);
     }
+    // The half lives as long as its decimation (its output is built from it), beside the
+    // other half's and both working meshes, at the step's memory peak: no spare room.
+    m.positions.shrink_to_fit();
+    m.colors.shrink_to_fit();
+    m.texcoords.shrink_to_fit();
+    m.normals.shrink_to_fit();
+    m.wedges.shrink_to_fit();
     m
 }
 

@@ -143,19 +143,17 @@ struct ClassifyScratch {
     touching: Vec<(u32, u32)>,
     /// `touching` is sorted by vertex (more than [`SCAN_TOUCHING`] entries).
     sorted: bool,
+    /// The constraint planes of the vertex's seam and border edges, in the order met.
+    planes: Vec<Plane>,
 }
 
 /// A constraint plane as (unit normal, point, weight).
 type Plane = ([f64; 3], [f64; 3], f64);
 
-/// One vertex's classification. The planes are boxed so that the common case (no planes:
-/// `keep` and `free` borders, interior vertices) costs one pointer per vertex.
+/// One vertex's classification (its constraint planes are left in the scratch).
 struct VertexInfo {
     class: VClass,
     border: bool,
-    // Boxed on purpose: one pointer where a `Vec` would be three words, for every vertex.
-    #[allow(clippy::box_collection)]
-    planes: Option<Box<Vec<Plane>>>,
     /// Inner-loop steps, for [`Work::classify_steps`].
     steps: u64,
 }
@@ -475,37 +473,55 @@ impl<'a, const M: usize> Work<'a, M> {
 
     /// Vertex classes (see [`VClass`]) from each vertex's star, in parallel; adds the
     /// border planes of `boundary = "weighted"` to the border wedges.
+    ///
+    /// Each task writes its own vertex's class, border flag and reduced quadric in place:
+    /// no per-vertex record (nor a box of planes per seam vertex) is collected first, since
+    /// this runs at the decimation's memory peak (the halves' set-up). A vertex's planes are
+    /// added in the order met, as a sequential pass would, so the sums are the same whatever
+    /// the thread count.
     fn classify(&mut self) {
-        let infos: Vec<VertexInfo> = (0..self.pos.len())
-            .into_par_iter()
-            .map_init(ClassifyScratch::default, |sc, v| {
-                self.classify_vertex(v, sc)
-            })
-            .collect();
-        for (v, info) in infos.into_iter().enumerate() {
-            self.classify_steps += info.steps;
-            let class = match (info.class, self.cfg.boundary) {
-                (VClass::Border, Border::Fixed) => VClass::Fixed,
-                (c, _) => c,
-            };
-            self.class[v] = class;
-            self.border[v] = info.border;
-            match class {
+        let mut class = std::mem::take(&mut self.class);
+        let mut border = std::mem::take(&mut self.border);
+        let mut vred = std::mem::take(&mut self.vred);
+        let this = &*self;
+        let steps: u64 = class
+            .par_iter_mut()
+            .zip(border.par_iter_mut())
+            .zip(vred.par_iter_mut())
+            .enumerate()
+            .map_init(
+                ClassifyScratch::default,
+                |sc, (v, ((class, border), red))| {
+                    let info = this.classify_vertex(v, sc);
+                    *class = match (info.class, this.cfg.boundary) {
+                        (VClass::Border, Border::Fixed) => VClass::Fixed,
+                        (c, _) => c,
+                    };
+                    *border = info.border;
+                    for &(n, point, weight) in &sc.planes {
+                        red.add_plane(&Quadric::<M>::plane(n, point, weight));
+                    }
+                    info.steps
+                },
+            )
+            .sum();
+        self.classify_steps += steps;
+        for &c in &class {
+            match c {
                 VClass::Interior => self.classes.interior += 1,
                 VClass::Border => self.classes.border += 1,
                 VClass::Seam => self.classes.seam += 1,
                 VClass::Fixed => self.classes.fixed += 1,
             }
-            for (n, point, weight) in info.planes.into_iter().flat_map(|p| *p) {
-                self.vred[v].add_plane(&Quadric::<M>::plane(n, point, weight));
-            }
         }
+        (self.class, self.border, self.vred) = (class, border, vred);
     }
 
     /// One vertex's class from its link's shape, its wedges and the seam and border edges
     /// around it, with the constraint planes of those edges.
     fn classify_vertex(&self, v: usize, sc: &mut ClassifyScratch) -> VertexInfo {
         sc.corners.clear();
+        sc.planes.clear();
         let mut c = self.vfirst[v];
         while c != NIL {
             sc.corners.push(c);
@@ -515,14 +531,14 @@ impl<'a, const M: usize> Work<'a, M> {
             return VertexInfo {
                 class: VClass::Fixed,
                 border: false,
-                planes: None,
                 steps: 1,
             };
         }
         let nwedges = self.link_and_wedges(sc);
         let shape = link_shape(&sc.link, &mut sc.lsc);
         let mut steps = sc.corners.len() as u64 + self.index_touching(sc);
-        let edges = self.star_edges(v, sc, &mut steps);
+        let planes = std::mem::take(&mut sc.planes);
+        let edges = self.star_edges(v, sc, &mut steps, planes);
         let class = match shape {
             None => VClass::Fixed,
             Some(_) if edges.seam > 0 && edges.border > 0 => VClass::Fixed,
@@ -531,10 +547,11 @@ impl<'a, const M: usize> Work<'a, M> {
             Some(LinkShape::Cycle) if edges.seam == 2 && nwedges == 2 => VClass::Seam,
             _ => VClass::Fixed,
         };
+        let border = edges.border > 0 || shape == Some(LinkShape::Path);
+        sc.planes = edges.planes;
         VertexInfo {
             class,
-            border: edges.border > 0 || shape == Some(LinkShape::Path),
-            planes: (!edges.planes.is_empty()).then(|| Box::new(edges.planes)),
+            border,
             steps,
         }
     }
@@ -590,10 +607,20 @@ impl<'a, const M: usize> Work<'a, M> {
     }
 
     /// Every edge (v, x) of v's star, once: border and seam edges counted, with their
-    /// constraint planes where the configuration weights them.
+    /// constraint planes where the configuration weights them (appended to `planes`, a
+    /// reused buffer).
     #[inline]
-    fn star_edges(&self, v: usize, sc: &ClassifyScratch, steps: &mut u64) -> StarEdges {
-        let mut edges = StarEdges::default();
+    fn star_edges(
+        &self,
+        v: usize,
+        sc: &ClassifyScratch,
+        steps: &mut u64,
+        planes: Vec<Plane>,
+    ) -> StarEdges {
+        let mut edges = StarEdges {
+            planes,
+            ..StarEdges::default()
+        };
         let touching = &sc.touching[..];
         for (i, &ci) in sc.corners.iter().enumerate() {
             let (ti, ki) = (ci as usize / 3, ci as usize % 3);
