@@ -300,8 +300,7 @@ pub struct ClassCounts {
     pub fixed: usize,
 }
 
-pub struct Work<'a, const M: usize> {
-    pub input: &'a Mesh,
+pub struct Work<const M: usize> {
     pub center: DVec3,
     /// Normalised = (p − center) · inv_scale; the largest box side becomes 1.
     pub inv_scale: f64,
@@ -316,6 +315,11 @@ pub struct Work<'a, const M: usize> {
     pub star: Vec<u32>,
     /// Wedge indices of each triangle.
     pub tris: Vec<[u32; 3]>,
+    /// Material of each triangle, or empty when the input's triangles all have one (the
+    /// only use is to compare two triangles' materials). The working mesh keeps no
+    /// reference to its input, so that a caller that owns the input may drop parts of it
+    /// while the collapse loop runs (the halves, `halves.rs`).
+    tmat: Vec<Index>,
     /// Vertex indices of each triangle; `[NIL; 3]` once deleted.
     pub tv: Vec<[u32; 3]>,
     pub wvert: Vec<u32>,
@@ -343,7 +347,7 @@ pub struct Work<'a, const M: usize> {
     pub classify_steps: u64,
 }
 
-impl<'a, const M: usize> Work<'a, M> {
+impl<const M: usize> Work<M> {
     /// Builds the working mesh: normalised positions, corner lists, vertex classes and
     /// the wedge quadrics (in parallel).
     ///
@@ -351,7 +355,17 @@ impl<'a, const M: usize> Work<'a, M> {
     /// earlier decimation's input): the flip guard then holds each triangle against the
     /// normal of its triangle there instead of its own, so that a second decimation of a
     /// decimated mesh keeps the guarantee against the first one's input.
-    pub fn new(input: &'a Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
+    pub fn new(input: &Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
+        let mut work = Self::copied(input, w, cfg, origin);
+        work.prepare();
+        work
+    }
+
+    /// [`Work::new`] without the quadrics and vertex classes ([`Work::prepare`] adds them):
+    /// what the working mesh copies from `input`. The input is not read again until
+    /// [`Work::into_mesh`], so a caller that owns it may drop parts of it before the
+    /// quadrics, the set-up's largest arrays, are allocated.
+    pub fn copied(input: &Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
         let has_uv = !input.texcoords.is_empty() && M >= 2;
         let has_normals = !input.normals.is_empty() && (M == 3 || M == 5);
         let (center, inv_scale, pos) = normalised_positions(input);
@@ -362,8 +376,13 @@ impl<'a, const M: usize> Work<'a, M> {
         let (vfirst, cnext, star) = corner_lists(&tris, &wvert, nv);
         let nw = wvert.len();
         let tv: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|w| wvert[w as usize])).collect();
-        let mut work = Work {
-            input,
+        let tmat = match input.triangle_materials.split_first() {
+            Some((first, rest)) if rest.iter().any(|m| m != first) => {
+                input.triangle_materials.clone()
+            }
+            _ => Vec::new(),
+        };
+        Work {
             center,
             inv_scale,
             pos,
@@ -375,6 +394,7 @@ impl<'a, const M: usize> Work<'a, M> {
             star,
             live: tris.len(),
             tris,
+            tmat,
             tv,
             wvert,
             wattr,
@@ -388,13 +408,11 @@ impl<'a, const M: usize> Work<'a, M> {
             cfg,
             classes: ClassCounts::default(),
             classify_steps: 0,
-        };
-        work.prepare();
-        work
+        }
     }
 
     /// The quadrics, then the vertex classes (which add border planes to the quadrics).
-    fn prepare(&mut self) {
+    pub fn prepare(&mut self) {
         let (t0, c0) = (std::time::Instant::now(), super::cpu_seconds());
         self.quadrics();
         let (t1, c1) = (std::time::Instant::now(), super::cpu_seconds());
@@ -678,10 +696,7 @@ impl<'a, const M: usize> Work<'a, M> {
             .iter()
             .find(|&&w| self.wvert[w as usize] == x)
             .unwrap_or(&NIL);
-        if tri_j[kj] != tri_i[ki]
-            || xw_j != x_w
-            || self.input.triangle_material(ti) != self.input.triangle_material(tj)
-        {
+        if tri_j[kj] != tri_i[ki] || xw_j != x_w || self.material(ti) != self.material(tj) {
             edges.seam += 1;
             if self.cfg.seam_weight > 0.0 {
                 // One plane per side, each with half the weight.
@@ -1099,7 +1114,7 @@ impl<'a, const M: usize> Work<'a, M> {
         let (t0, t1) = (found[0], found[1]);
         wedge_at(t0, a) != wedge_at(t1, a)
             || wedge_at(t0, b) != wedge_at(t1, b)
-            || self.input.triangle_material(t0) != self.input.triangle_material(t1)
+            || self.material(t0) != self.material(t1)
     }
 
     fn is_border_edge(&self, a: u32, b: u32, dead: &[u32]) -> bool {
@@ -1248,20 +1263,32 @@ impl<'a, const M: usize> Work<'a, M> {
         e / 3.0
     }
 
-    /// The output mesh: surviving triangles in their input order with their origins and
-    /// materials; moved vertices mapped back from the unit box, unmoved ones bit-exact;
-    /// changed attributes appended as new texture coordinates / normals (reading R10), normals
-    /// renormalised (reading R9).
-    pub fn into_mesh(mut self) -> Mesh {
-        // What the output does not need goes first, so that the output is built in the
-        // memory they held (peak memory, issue #5).
+    /// Material of triangle `t` (see [`Work::tmat`]).
+    #[inline]
+    fn material(&self, t: usize) -> Index {
+        self.tmat.get(t).copied().unwrap_or(0)
+    }
+
+    /// Frees what only the collapse loop needs (the quadrics, the corner lists, the origin
+    /// normals), so that the output is built in the memory they held (peak memory, issue
+    /// #5). [`Work::into_mesh`] does it first; a caller that must bring back parts of the
+    /// input before the output is built does it before that.
+    pub fn release_loop_state(&mut self) {
         self.wq = WedgeQuadrics::default();
         self.vred = Vec::new();
         self.cnext = Vec::new();
         self.vfirst = Vec::new();
         self.star = Vec::new();
         self.onormal = Vec::new();
-        let input = self.input;
+    }
+
+    /// The output mesh: surviving triangles in their input order with their origins and
+    /// materials; moved vertices mapped back from the unit box, unmoved ones bit-exact;
+    /// changed attributes appended as new texture coordinates / normals (reading R10), normals
+    /// renormalised (reading R9). `input` is the mesh the working mesh was built from; its
+    /// triangles are not read (the working mesh has its own).
+    pub fn into_mesh(mut self, input: &Mesh) -> Mesh {
+        self.release_loop_state();
         let scale = 1.0 / self.inv_scale;
         let positions: Vec<DVec3> = (0..self.pos.len())
             .map(|v| {
