@@ -31,12 +31,17 @@ fn remap(used: &[bool]) -> (Vec<Index>, usize) {
     (table, next as usize)
 }
 
+/// Keeps the elements `table` maps, and gives back the room of the others: a compacted mesh
+/// often lives on for the rest of a run (a step's output, the seam reference), and a vector
+/// that grew by appending (texture coordinates appended per moved wedge) can hold several
+/// times its length.
 fn keep<T: Copy>(values: &mut Vec<T>, table: &[Index]) {
     let mut i = 0;
     values.retain(|_| {
         i += 1;
         table[i - 1] != UNUSED
     });
+    values.shrink_to_fit();
 }
 
 impl Mesh {

@@ -169,6 +169,11 @@ fn apply(mesh: &mut Mesh, updates: Vec<Option<DVec2>>, across_seam: usize) -> Fo
         ..FollowReport::default()
     };
     let mut total_shift = 0.0;
+    // Room for exactly the appended coordinates: growing by doubling would leave the mesh,
+    // which lives on as the decimation's input and seam reference, up to four times the
+    // texture coordinates it keeps.
+    mesh.texcoords
+        .reserve_exact(updates.iter().filter(|u| u.is_some()).count());
     for (w, update) in updates.into_iter().enumerate() {
         let Some(uv) = update else { continue };
         let old = mesh.wedge_texcoord(w as Index).unwrap_or(uv);

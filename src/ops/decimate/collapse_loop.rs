@@ -119,7 +119,7 @@ impl CollapseOperator for FaceCollapse {
 
 /// The triangles not yet collapsed.
 pub(super) fn live_triangles<'a, const M: usize>(
-    work: &'a Work<'_, M>,
+    work: &'a Work<M>,
 ) -> impl Iterator<Item = usize> + 'a {
     (0..work.tv.len()).filter(|&t| work.tv[t][0] != NIL)
 }

@@ -497,18 +497,88 @@ pub fn decimate_with_origin(
         (None, false, true) => run::<3>(mesh, params, origin),
         (None, false, false) => run::<0>(mesh, params, origin),
     };
-    report.method = params.method.name();
-    report.faces_before = mesh.triangles.len();
-    report.vertices_before = mesh.positions.len();
-    report.faces_after = out.triangles.len();
-    report.vertices_after = out.positions.len();
-    report.target_faces = params.target_faces;
-    debug_assert!(out.check_invariants().is_ok());
     if out.triangle_origins.len() != out.triangles.len() {
         out.triangle_origins = (0..out.triangles.len())
             .map(|t| mesh.triangle_origin(t))
             .collect();
     }
+    finish(
+        params,
+        (mesh.triangles.len(), mesh.positions.len()),
+        &out,
+        &mut report,
+    );
+    Ok((out, report))
+}
+
+/// The input of a collapse decimation ([`collapse`]). A caller that owns its input may
+/// drop from it, while the collapse loop runs, what the loop does not read (the working
+/// mesh has its own copies), and bring it back for the output: the halves do
+/// (`halves.rs`), since both halves' working meshes are alive at once at the step's memory
+/// peak.
+pub(crate) trait CollapseInput {
+    fn mesh(&self) -> &Mesh;
+    /// The working mesh has its copies ([`Work::copied`]), its quadrics are not yet made:
+    /// what only the output needs may go.
+    fn thin(&mut self) {}
+    /// The loop is done: bring back what [`Work::into_mesh`] reads (all but the triangles).
+    fn restore(&mut self) {}
+}
+
+impl CollapseInput for &Mesh {
+    fn mesh(&self) -> &Mesh {
+        self
+    }
+}
+
+/// [`decimate`] of an input the caller owns (see [`CollapseInput`]), in one pass (no
+/// halves, no origin).
+pub(crate) fn decimate_input<I: CollapseInput>(
+    input: I,
+    params: &DecimateParams,
+) -> Result<(Mesh, DecimateReport), DecimateError> {
+    params.validate().map_err(DecimateError::Params)?;
+    let mesh = input.mesh();
+    if mesh.triangles.is_empty() {
+        return Err(DecimateError::Empty);
+    }
+    let before = (mesh.triangles.len(), mesh.positions.len());
+    let (has_uv, has_n) = (!mesh.texcoords.is_empty(), !mesh.normals.is_empty());
+    let (out, mut report) = match (has_uv, has_n) {
+        (true, true) => run_input::<5, I>(input, params),
+        (true, false) => run_input::<2, I>(input, params),
+        (false, true) => run_input::<3, I>(input, params),
+        (false, false) => run_input::<0, I>(input, params),
+    };
+    finish(params, before, &out, &mut report);
+    Ok((out, report))
+}
+
+fn run_input<const M: usize, I: CollapseInput>(
+    input: I,
+    params: &DecimateParams,
+) -> (Mesh, DecimateReport) {
+    let w = weights::<M>(input.mesh(), params);
+    match params.method {
+        Method::Cluster | Method::ClusterKeep => cluster::run::<M>(input.mesh(), params, w),
+        Method::FaceCollapse | Method::EdgeCollapse => collapse::<M, I>(input, params, w, None),
+    }
+}
+
+/// The report's counts and the log lines of a finished decimation; `before` is the input's
+/// (triangles, vertices).
+fn finish(
+    params: &DecimateParams,
+    before: (usize, usize),
+    out: &Mesh,
+    report: &mut DecimateReport,
+) {
+    report.method = params.method.name();
+    (report.faces_before, report.vertices_before) = before;
+    report.faces_after = out.triangles.len();
+    report.vertices_after = out.positions.len();
+    report.target_faces = params.target_faces;
+    debug_assert!(out.check_invariants().is_ok());
     if let Some(note) = &report.stop_note {
         tracing::info!("{note}");
     }
@@ -519,7 +589,6 @@ pub fn decimate_with_origin(
         error = report.error_reached,
         "decimated"
     );
-    Ok((out, report))
 }
 
 fn weights<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> Weights<M> {
@@ -549,7 +618,7 @@ fn run<const M: usize>(
     let w = weights::<M>(mesh, params);
     match params.method {
         Method::Cluster | Method::ClusterKeep => cluster::run::<M>(mesh, params, w),
-        Method::FaceCollapse | Method::EdgeCollapse => collapse::<M>(mesh, params, w, origin),
+        Method::FaceCollapse | Method::EdgeCollapse => collapse(mesh, params, w, origin),
     }
 }
 
@@ -572,15 +641,17 @@ fn collapse_config(params: &DecimateParams) -> Config {
 
 /// Face or edge collapse: the set-up, the collapse loop, the output; the phases' wall and
 /// CPU times go to the debug log.
-fn collapse<const M: usize>(
-    mesh: &Mesh,
+fn collapse<const M: usize, I: CollapseInput>(
+    mut input: I,
     params: &DecimateParams,
     w: Weights<M>,
     origin: Option<&Mesh>,
 ) -> (Mesh, DecimateReport) {
-    let diag = mesh.bounding_box_diagonal();
+    let diag = input.mesh().bounding_box_diagonal();
     let (t0, c0) = (std::time::Instant::now(), cpu_seconds());
-    let mut work = Work::<M>::new(mesh, w, collapse_config(params), origin);
+    let mut work = Work::<M>::copied(input.mesh(), w, collapse_config(params), origin);
+    input.thin();
+    work.prepare();
     let (t1, c1) = (std::time::Instant::now(), cpu_seconds());
     // Normalised units: the largest box side is 1.
     let to_diag = if diag > 0.0 {
@@ -602,7 +673,9 @@ fn collapse<const M: usize>(
     };
     let (t2, c2) = (std::time::Instant::now(), cpu_seconds());
     let report = collapse_report(params, &work, stats, what, to_diag);
-    let out = work.into_mesh();
+    work.release_loop_state();
+    input.restore();
+    let out = work.into_mesh(input.mesh());
     tracing::debug!(
         work_ms = (t1 - t0).as_secs_f64() * 1e3,
         collapse_ms = (t2 - t1).as_secs_f64() * 1e3,

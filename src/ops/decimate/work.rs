@@ -143,19 +143,17 @@ struct ClassifyScratch {
     touching: Vec<(u32, u32)>,
     /// `touching` is sorted by vertex (more than [`SCAN_TOUCHING`] entries).
     sorted: bool,
+    /// The constraint planes of the vertex's seam and border edges, in the order met.
+    planes: Vec<Plane>,
 }
 
 /// A constraint plane as (unit normal, point, weight).
 type Plane = ([f64; 3], [f64; 3], f64);
 
-/// One vertex's classification. The planes are boxed so that the common case (no planes:
-/// `keep` and `free` borders, interior vertices) costs one pointer per vertex.
+/// One vertex's classification (its constraint planes are left in the scratch).
 struct VertexInfo {
     class: VClass,
     border: bool,
-    // Boxed on purpose: one pointer where a `Vec` would be three words, for every vertex.
-    #[allow(clippy::box_collection)]
-    planes: Option<Box<Vec<Plane>>>,
     /// Inner-loop steps, for [`Work::classify_steps`].
     steps: u64,
 }
@@ -302,8 +300,7 @@ pub struct ClassCounts {
     pub fixed: usize,
 }
 
-pub struct Work<'a, const M: usize> {
-    pub input: &'a Mesh,
+pub struct Work<const M: usize> {
     pub center: DVec3,
     /// Normalised = (p − center) · inv_scale; the largest box side becomes 1.
     pub inv_scale: f64,
@@ -318,6 +315,11 @@ pub struct Work<'a, const M: usize> {
     pub star: Vec<u32>,
     /// Wedge indices of each triangle.
     pub tris: Vec<[u32; 3]>,
+    /// Material of each triangle, or empty when the input's triangles all have one (the
+    /// only use is to compare two triangles' materials). The working mesh keeps no
+    /// reference to its input, so that a caller that owns the input may drop parts of it
+    /// while the collapse loop runs (the halves, `halves.rs`).
+    tmat: Vec<Index>,
     /// Vertex indices of each triangle; `[NIL; 3]` once deleted.
     pub tv: Vec<[u32; 3]>,
     pub wvert: Vec<u32>,
@@ -345,7 +347,7 @@ pub struct Work<'a, const M: usize> {
     pub classify_steps: u64,
 }
 
-impl<'a, const M: usize> Work<'a, M> {
+impl<const M: usize> Work<M> {
     /// Builds the working mesh: normalised positions, corner lists, vertex classes and
     /// the wedge quadrics (in parallel).
     ///
@@ -353,7 +355,17 @@ impl<'a, const M: usize> Work<'a, M> {
     /// earlier decimation's input): the flip guard then holds each triangle against the
     /// normal of its triangle there instead of its own, so that a second decimation of a
     /// decimated mesh keeps the guarantee against the first one's input.
-    pub fn new(input: &'a Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
+    pub fn new(input: &Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
+        let mut work = Self::copied(input, w, cfg, origin);
+        work.prepare();
+        work
+    }
+
+    /// [`Work::new`] without the quadrics and vertex classes ([`Work::prepare`] adds them):
+    /// what the working mesh copies from `input`. The input is not read again until
+    /// [`Work::into_mesh`], so a caller that owns it may drop parts of it before the
+    /// quadrics, the set-up's largest arrays, are allocated.
+    pub fn copied(input: &Mesh, w: Weights<M>, cfg: Config, origin: Option<&Mesh>) -> Self {
         let has_uv = !input.texcoords.is_empty() && M >= 2;
         let has_normals = !input.normals.is_empty() && (M == 3 || M == 5);
         let (center, inv_scale, pos) = normalised_positions(input);
@@ -364,8 +376,13 @@ impl<'a, const M: usize> Work<'a, M> {
         let (vfirst, cnext, star) = corner_lists(&tris, &wvert, nv);
         let nw = wvert.len();
         let tv: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|w| wvert[w as usize])).collect();
-        let mut work = Work {
-            input,
+        let tmat = match input.triangle_materials.split_first() {
+            Some((first, rest)) if rest.iter().any(|m| m != first) => {
+                input.triangle_materials.clone()
+            }
+            _ => Vec::new(),
+        };
+        Work {
             center,
             inv_scale,
             pos,
@@ -377,6 +394,7 @@ impl<'a, const M: usize> Work<'a, M> {
             star,
             live: tris.len(),
             tris,
+            tmat,
             tv,
             wvert,
             wattr,
@@ -390,13 +408,11 @@ impl<'a, const M: usize> Work<'a, M> {
             cfg,
             classes: ClassCounts::default(),
             classify_steps: 0,
-        };
-        work.prepare();
-        work
+        }
     }
 
     /// The quadrics, then the vertex classes (which add border planes to the quadrics).
-    fn prepare(&mut self) {
+    pub fn prepare(&mut self) {
         let (t0, c0) = (std::time::Instant::now(), super::cpu_seconds());
         self.quadrics();
         let (t1, c1) = (std::time::Instant::now(), super::cpu_seconds());
@@ -475,37 +491,55 @@ impl<'a, const M: usize> Work<'a, M> {
 
     /// Vertex classes (see [`VClass`]) from each vertex's star, in parallel; adds the
     /// border planes of `boundary = "weighted"` to the border wedges.
+    ///
+    /// Each task writes its own vertex's class, border flag and reduced quadric in place:
+    /// no per-vertex record (nor a box of planes per seam vertex) is collected first, since
+    /// this runs at the decimation's memory peak (the halves' set-up). A vertex's planes are
+    /// added in the order met, as a sequential pass would, so the sums are the same whatever
+    /// the thread count.
     fn classify(&mut self) {
-        let infos: Vec<VertexInfo> = (0..self.pos.len())
-            .into_par_iter()
-            .map_init(ClassifyScratch::default, |sc, v| {
-                self.classify_vertex(v, sc)
-            })
-            .collect();
-        for (v, info) in infos.into_iter().enumerate() {
-            self.classify_steps += info.steps;
-            let class = match (info.class, self.cfg.boundary) {
-                (VClass::Border, Border::Fixed) => VClass::Fixed,
-                (c, _) => c,
-            };
-            self.class[v] = class;
-            self.border[v] = info.border;
-            match class {
+        let mut class = std::mem::take(&mut self.class);
+        let mut border = std::mem::take(&mut self.border);
+        let mut vred = std::mem::take(&mut self.vred);
+        let this = &*self;
+        let steps: u64 = class
+            .par_iter_mut()
+            .zip(border.par_iter_mut())
+            .zip(vred.par_iter_mut())
+            .enumerate()
+            .map_init(
+                ClassifyScratch::default,
+                |sc, (v, ((class, border), red))| {
+                    let info = this.classify_vertex(v, sc);
+                    *class = match (info.class, this.cfg.boundary) {
+                        (VClass::Border, Border::Fixed) => VClass::Fixed,
+                        (c, _) => c,
+                    };
+                    *border = info.border;
+                    for &(n, point, weight) in &sc.planes {
+                        red.add_plane(&Quadric::<M>::plane(n, point, weight));
+                    }
+                    info.steps
+                },
+            )
+            .sum();
+        self.classify_steps += steps;
+        for &c in &class {
+            match c {
                 VClass::Interior => self.classes.interior += 1,
                 VClass::Border => self.classes.border += 1,
                 VClass::Seam => self.classes.seam += 1,
                 VClass::Fixed => self.classes.fixed += 1,
             }
-            for (n, point, weight) in info.planes.into_iter().flat_map(|p| *p) {
-                self.vred[v].add_plane(&Quadric::<M>::plane(n, point, weight));
-            }
         }
+        (self.class, self.border, self.vred) = (class, border, vred);
     }
 
     /// One vertex's class from its link's shape, its wedges and the seam and border edges
     /// around it, with the constraint planes of those edges.
     fn classify_vertex(&self, v: usize, sc: &mut ClassifyScratch) -> VertexInfo {
         sc.corners.clear();
+        sc.planes.clear();
         let mut c = self.vfirst[v];
         while c != NIL {
             sc.corners.push(c);
@@ -515,14 +549,14 @@ impl<'a, const M: usize> Work<'a, M> {
             return VertexInfo {
                 class: VClass::Fixed,
                 border: false,
-                planes: None,
                 steps: 1,
             };
         }
         let nwedges = self.link_and_wedges(sc);
         let shape = link_shape(&sc.link, &mut sc.lsc);
         let mut steps = sc.corners.len() as u64 + self.index_touching(sc);
-        let edges = self.star_edges(v, sc, &mut steps);
+        let planes = std::mem::take(&mut sc.planes);
+        let edges = self.star_edges(v, sc, &mut steps, planes);
         let class = match shape {
             None => VClass::Fixed,
             Some(_) if edges.seam > 0 && edges.border > 0 => VClass::Fixed,
@@ -531,10 +565,11 @@ impl<'a, const M: usize> Work<'a, M> {
             Some(LinkShape::Cycle) if edges.seam == 2 && nwedges == 2 => VClass::Seam,
             _ => VClass::Fixed,
         };
+        let border = edges.border > 0 || shape == Some(LinkShape::Path);
+        sc.planes = edges.planes;
         VertexInfo {
             class,
-            border: edges.border > 0 || shape == Some(LinkShape::Path),
-            planes: (!edges.planes.is_empty()).then(|| Box::new(edges.planes)),
+            border,
             steps,
         }
     }
@@ -590,10 +625,20 @@ impl<'a, const M: usize> Work<'a, M> {
     }
 
     /// Every edge (v, x) of v's star, once: border and seam edges counted, with their
-    /// constraint planes where the configuration weights them.
+    /// constraint planes where the configuration weights them (appended to `planes`, a
+    /// reused buffer).
     #[inline]
-    fn star_edges(&self, v: usize, sc: &ClassifyScratch, steps: &mut u64) -> StarEdges {
-        let mut edges = StarEdges::default();
+    fn star_edges(
+        &self,
+        v: usize,
+        sc: &ClassifyScratch,
+        steps: &mut u64,
+        planes: Vec<Plane>,
+    ) -> StarEdges {
+        let mut edges = StarEdges {
+            planes,
+            ..StarEdges::default()
+        };
         let touching = &sc.touching[..];
         for (i, &ci) in sc.corners.iter().enumerate() {
             let (ti, ki) = (ci as usize / 3, ci as usize % 3);
@@ -651,10 +696,7 @@ impl<'a, const M: usize> Work<'a, M> {
             .iter()
             .find(|&&w| self.wvert[w as usize] == x)
             .unwrap_or(&NIL);
-        if tri_j[kj] != tri_i[ki]
-            || xw_j != x_w
-            || self.input.triangle_material(ti) != self.input.triangle_material(tj)
-        {
+        if tri_j[kj] != tri_i[ki] || xw_j != x_w || self.material(ti) != self.material(tj) {
             edges.seam += 1;
             if self.cfg.seam_weight > 0.0 {
                 // One plane per side, each with half the weight.
@@ -1072,7 +1114,7 @@ impl<'a, const M: usize> Work<'a, M> {
         let (t0, t1) = (found[0], found[1]);
         wedge_at(t0, a) != wedge_at(t1, a)
             || wedge_at(t0, b) != wedge_at(t1, b)
-            || self.input.triangle_material(t0) != self.input.triangle_material(t1)
+            || self.material(t0) != self.material(t1)
     }
 
     fn is_border_edge(&self, a: u32, b: u32, dead: &[u32]) -> bool {
@@ -1221,20 +1263,32 @@ impl<'a, const M: usize> Work<'a, M> {
         e / 3.0
     }
 
-    /// The output mesh: surviving triangles in their input order with their origins and
-    /// materials; moved vertices mapped back from the unit box, unmoved ones bit-exact;
-    /// changed attributes appended as new texture coordinates / normals (reading R10), normals
-    /// renormalised (reading R9).
-    pub fn into_mesh(mut self) -> Mesh {
-        // What the output does not need goes first, so that the output is built in the
-        // memory they held (peak memory, issue #5).
+    /// Material of triangle `t` (see [`Work::tmat`]).
+    #[inline]
+    fn material(&self, t: usize) -> Index {
+        self.tmat.get(t).copied().unwrap_or(0)
+    }
+
+    /// Frees what only the collapse loop needs (the quadrics, the corner lists, the origin
+    /// normals), so that the output is built in the memory they held (peak memory, issue
+    /// #5). [`Work::into_mesh`] does it first; a caller that must bring back parts of the
+    /// input before the output is built does it before that.
+    pub fn release_loop_state(&mut self) {
         self.wq = WedgeQuadrics::default();
         self.vred = Vec::new();
         self.cnext = Vec::new();
         self.vfirst = Vec::new();
         self.star = Vec::new();
         self.onormal = Vec::new();
-        let input = self.input;
+    }
+
+    /// The output mesh: surviving triangles in their input order with their origins and
+    /// materials; moved vertices mapped back from the unit box, unmoved ones bit-exact;
+    /// changed attributes appended as new texture coordinates / normals (reading R10), normals
+    /// renormalised (reading R9). `input` is the mesh the working mesh was built from; its
+    /// triangles are not read (the working mesh has its own).
+    pub fn into_mesh(mut self, input: &Mesh) -> Mesh {
+        self.release_loop_state();
         let scale = 1.0 / self.inv_scale;
         let positions: Vec<DVec3> = (0..self.pos.len())
             .map(|v| {
