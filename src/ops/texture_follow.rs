@@ -213,6 +213,10 @@ mod tests {
         assert_eq!(r.corners, before.wedges.len());
         assert_eq!(r.across_seam, 0);
         assert!(r.max_shift > 0.0);
+        // One coordinate per wedge now, and no room for the old ones: the mesh lives on
+        // through the decimation's memory peak.
+        assert_eq!(moved.texcoords.len(), before.wedges.len());
+        assert_eq!(moved.texcoords.capacity(), moved.texcoords.len());
         for w in 0..moved.wedges.len() {
             let p = moved.positions[moved.wedges[w].vertex as usize];
             let uv = moved.wedge_texcoord(w as Index).unwrap();

@@ -5,7 +5,8 @@
 //! 1. The triangles are split at the median centroid along the bounding box's longest axis.
 //!    The vertices used by both halves are the *cut*.
 //! 2. Each half is decimated as a mesh of its own (in parallel, `rayon::join`) to its half
-//!    of [`STAGE_FACTOR`] × the target. The cut is a border of each half, and
+//!    of [`STAGE_FACTOR`] × the target; while its loop runs, a half keeps only what its
+//!    output reads back from the whole mesh (`Part`). The cut is a border of each half, and
 //!    `boundary = "fixed"` holds border vertices still, so the cut stays exactly as it was
 //!    (positions, wedges and their attributes).
 //! 3. The two results are stitched back together at the cut: its vertices are found by
