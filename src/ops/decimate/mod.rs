@@ -492,10 +492,10 @@ pub fn decimate_with_origin(
     };
     let (mut out, mut report) = match (in_halves, has_uv, has_n) {
         (Some(done), _, _) => done,
-        (None, true, true) => run::<5>(mesh, params, origin),
-        (None, true, false) => run::<2>(mesh, params, origin),
-        (None, false, true) => run::<3>(mesh, params, origin),
-        (None, false, false) => run::<0>(mesh, params, origin),
+        (None, true, true) => run::<5, &Mesh>(mesh, params, origin),
+        (None, true, false) => run::<2, &Mesh>(mesh, params, origin),
+        (None, false, true) => run::<3, &Mesh>(mesh, params, origin),
+        (None, false, false) => run::<0, &Mesh>(mesh, params, origin),
     };
     if out.triangle_origins.len() != out.triangles.len() {
         out.triangle_origins = (0..out.triangles.len())
@@ -545,23 +545,25 @@ pub(crate) fn decimate_input<I: CollapseInput>(
     let before = (mesh.triangles.len(), mesh.positions.len());
     let (has_uv, has_n) = (!mesh.texcoords.is_empty(), !mesh.normals.is_empty());
     let (out, mut report) = match (has_uv, has_n) {
-        (true, true) => run_input::<5, I>(input, params),
-        (true, false) => run_input::<2, I>(input, params),
-        (false, true) => run_input::<3, I>(input, params),
-        (false, false) => run_input::<0, I>(input, params),
+        (true, true) => run::<5, I>(input, params, None),
+        (true, false) => run::<2, I>(input, params, None),
+        (false, true) => run::<3, I>(input, params, None),
+        (false, false) => run::<0, I>(input, params, None),
     };
     finish(params, before, &out, &mut report);
     Ok((out, report))
 }
 
-fn run_input<const M: usize, I: CollapseInput>(
+/// One decimation with `M` attribute channels per wedge.
+fn run<const M: usize, I: CollapseInput>(
     input: I,
     params: &DecimateParams,
+    origin: Option<&Mesh>,
 ) -> (Mesh, DecimateReport) {
     let w = weights::<M>(input.mesh(), params);
     match params.method {
         Method::Cluster | Method::ClusterKeep => cluster::run::<M>(input.mesh(), params, w),
-        Method::FaceCollapse | Method::EdgeCollapse => collapse::<M, I>(input, params, w, None),
+        Method::FaceCollapse | Method::EdgeCollapse => collapse::<M, I>(input, params, w, origin),
     }
 }
 
@@ -607,18 +609,6 @@ fn weights<const M: usize>(mesh: &Mesh, params: &DecimateParams) -> Weights<M> {
     Weights {
         geom: params.weight(params.geometry_weight),
         attr,
-    }
-}
-
-fn run<const M: usize>(
-    mesh: &Mesh,
-    params: &DecimateParams,
-    origin: Option<&Mesh>,
-) -> (Mesh, DecimateReport) {
-    let w = weights::<M>(mesh, params);
-    match params.method {
-        Method::Cluster | Method::ClusterKeep => cluster::run::<M>(mesh, params, w),
-        Method::FaceCollapse | Method::EdgeCollapse => collapse(mesh, params, w, origin),
     }
 }
 
