@@ -7,15 +7,20 @@
 //! coordinate is that input triangle's, interpolated at `v` (barycentric). Nudging into the
 //! face picks the right side of a seam that runs inside one chart; searching only the chart
 //! keeps every corner in the chart its face was cut from, so the photo stays where it was.
+//! The searches walk over the chart's triangles from the input triangle the vertex was last
+//! projected onto ([`walk`]); a chart's tree is built only for a search that cannot walk.
 
 use super::corners::{Corners, NIL, VKind};
 use super::lines::Lines;
+use super::walk;
 use crate::geom::bvh::TriangleBvh;
 use crate::geom::closest_on_triangle;
+use crate::mesh::topology::Topology;
 use crate::mesh::{Index, Mesh, Wedge};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::sync::OnceLock;
 
 /// How far into its face a corner is moved before its chart is searched (fraction of the
 /// way to the face's centroid).
@@ -25,18 +30,26 @@ const NUDGE: f64 = 1e-3;
 /// of a 4096² image) are one wedge: they differ by rounding only.
 const SAME_UV: f64 = 1e-6;
 
-/// Per chart label, the BVH over its input triangles (the whole input's when there is one
-/// chart).
+/// The input's charts for the searches of the export: the chart label of each input
+/// triangle, and per label a tree over its triangles (the whole input's when there is one
+/// chart), built on first use: most searches end in a walk from a triangle of the chart.
 struct ChartIndex<'a> {
     input: &'a Mesh,
+    topo: &'a Topology,
     chart_of_input: &'a [u32],
     slot: HashMap<u32, usize>,
-    bvhs: Vec<TriangleBvh<'a>>,
+    members: Vec<Vec<u32>>,
+    bvhs: Vec<OnceLock<TriangleBvh<'a>>>,
     whole: &'a TriangleBvh<'a>,
 }
 
 impl<'a> ChartIndex<'a> {
-    fn new(input: &'a Mesh, chart_of_input: &'a [u32], whole: &'a TriangleBvh<'a>) -> Self {
+    fn new(
+        input: &'a Mesh,
+        topo: &'a Topology,
+        chart_of_input: &'a [u32],
+        whole: &'a TriangleBvh<'a>,
+    ) -> Self {
         let mut slot = HashMap::new();
         let mut members: Vec<Vec<u32>> = Vec::new();
         for (t, &ch) in chart_of_input.iter().enumerate() {
@@ -46,31 +59,35 @@ impl<'a> ChartIndex<'a> {
             });
             members[k].push(t as u32);
         }
-        let bvhs = if members.len() > 1 {
-            members
-                .into_par_iter()
-                .map(|m| TriangleBvh::new(input, m))
-                .collect()
-        } else {
-            Vec::new()
-        };
         ChartIndex {
             input,
+            topo,
             chart_of_input,
             slot,
-            bvhs,
+            bvhs: members.iter().map(|_| OnceLock::new()).collect(),
+            members,
             whole,
         }
     }
 
-    /// The input triangle of `chart` closest to `p`, searched from input triangle `hint`.
+    /// The tree over the triangles of `chart` (`None` for a label no input triangle has).
+    fn tree(&self, chart: u32) -> Option<&TriangleBvh<'a>> {
+        if self.members.len() == 1 {
+            return Some(self.whole);
+        }
+        let k = *self.slot.get(&chart)?;
+        Some(self.bvhs[k].get_or_init(|| TriangleBvh::new(self.input, self.members[k].clone())))
+    }
+
+    /// The input triangle of `chart` closest to `p`: walked to from input triangle `hint`
+    /// when that is in the chart, searched in the chart's tree otherwise.
     fn closest(&self, chart: u32, p: DVec3, hint: u32) -> Option<u32> {
-        let bvh = match self.bvhs.is_empty() {
-            true => self.whole,
-            false => &self.bvhs[*self.slot.get(&chart)?],
-        };
-        let start = (self.chart_of_input[hint as usize] == chart).then(|| bvh.hit_on(p, hint));
-        bvh.closest(p, start).map(|h| h.triangle)
+        let bvh = self.tree(chart)?;
+        if self.chart_of_input[hint as usize] != chart {
+            return bvh.closest(p, None).map(|h| h.triangle);
+        }
+        let within = |t: u32| self.chart_of_input[t as usize] == chart;
+        walk::walk_or_search(self.input, self.topo, bvh, hint, p, within).map(|f| f.triangle)
     }
 
     /// The texture coordinate at `p` (a point of the input) in `chart`, located from
@@ -131,12 +148,13 @@ pub fn export(
     c: &Corners,
     lines: &Lines,
     input: &Mesh,
+    topo: &Topology,
     chart_of_input: &[u32],
     bvh: &TriangleBvh,
 ) -> Mesh {
     let live = Live::of(c);
     let faces = &live.faces;
-    let charts = ChartIndex::new(input, chart_of_input, bvh);
+    let charts = ChartIndex::new(input, topo, chart_of_input, bvh);
     let uvs = corner_uvs(c, lines, input, &charts, faces);
     let mut out = Mesh {
         positions: live.vertices.iter().map(|&v| c.pos[v as usize]).collect(),
@@ -159,7 +177,7 @@ pub fn export(
     let face_charts: Vec<u32> = faces.iter().map(|&f| c.chart[f]).collect();
     out.triangle_origins = origins(&out, &charts, &face_charts, &hints);
     if !input.colors.is_empty() {
-        out.colors = colours(&out, input, bvh, &hints);
+        out.colors = colours(&out, input, topo, bvh, &hints);
     }
     out
 }
@@ -280,16 +298,22 @@ fn origins(out: &Mesh, charts: &ChartIndex, face_charts: &[u32], hints: &[u32]) 
 }
 
 /// Per-vertex colours interpolated at each output vertex's closest input point.
-fn colours(out: &Mesh, input: &Mesh, bvh: &TriangleBvh, hints: &[u32]) -> Vec<[u8; 4]> {
+fn colours(
+    out: &Mesh,
+    input: &Mesh,
+    topo: &Topology,
+    bvh: &TriangleBvh,
+    hints: &[u32],
+) -> Vec<[u8; 4]> {
     out.positions
         .par_iter()
         .zip(hints.par_iter())
         .map(|(&p, &hint)| {
-            let Some(hit) = bvh.closest(p, Some(bvh.hit_on(p, hint))) else {
+            let Some(foot) = walk::walk_or_search(input, topo, bvh, hint, p, |_| true) else {
                 return [255; 4];
             };
-            let vs = input.triangle_vertices(hit.triangle as usize);
-            let w = hit.bary.to_array();
+            let vs = input.triangle_vertices(foot.triangle as usize);
+            let w = foot.bary.to_array();
             let mut rgba = [0u8; 4];
             for (ch, slot) in rgba.iter_mut().enumerate() {
                 let x: f64 = (0..3)

@@ -15,6 +15,7 @@ use super::lines::Lines;
 use super::ops::{self, Scratch};
 use super::repair::{self, Repairs};
 use super::sizing::Sizing;
+use super::walk;
 use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
@@ -339,12 +340,15 @@ fn relaxed(c: &Corners, sizing: &Sizing, v: u32, sc: &mut Scratch) -> DVec3 {
     }
 }
 
-/// Projection back onto the input: free vertices onto the closest point of the surface,
-/// line vertices onto their line. A projection that would turn a face over is not made.
-pub fn project(c: &mut Corners, lines: &Lines, bvh: &TriangleBvh) {
+/// Projection back onto the input: free vertices onto the closest point of the surface near
+/// the input triangle they were last projected onto ([`walk::walk_or_search`]: a relaxed
+/// vertex moved by less than an edge, so a walk of a few triangles finds it, and stays on
+/// the vertex's sheet where the input folds), line vertices onto their line. A projection
+/// that would turn a face over is not made.
+pub fn project(c: &mut Corners, input: &Input) {
     let new: Vec<(DVec3, u32, u32)> = (0..c.pos.len() as u32)
         .into_par_iter()
-        .map_init(Scratch::default, |sc, v| projected(c, lines, bvh, v, sc))
+        .map_init(Scratch::default, |sc, v| projected(c, input, v, sc))
         .collect();
     for (v, (p, seg, tri)) in new.into_iter().enumerate() {
         c.pos[v] = p;
@@ -353,13 +357,13 @@ pub fn project(c: &mut Corners, lines: &Lines, bvh: &TriangleBvh) {
     }
 }
 
-fn projected(
-    c: &Corners,
-    lines: &Lines,
-    bvh: &TriangleBvh,
-    v: u32,
-    sc: &mut Scratch,
-) -> (DVec3, u32, u32) {
+fn projected(c: &Corners, input: &Input, v: u32, sc: &mut Scratch) -> (DVec3, u32, u32) {
+    let Input {
+        mesh,
+        topo,
+        bvh,
+        lines,
+    } = *input;
     let i = v as usize;
     let (p, seg, tri) = (c.pos[i], c.vseg[i], c.vtri[i]);
     if c.vertex_dead[i] || c.locked[i] {
@@ -372,13 +376,10 @@ fn projected(
             (q, s, tri)
         }
         VKind::Line => return (p, seg, tri),
-        VKind::Free => {
-            let start = bvh.hit_on(p, tri);
-            match bvh.closest(p, Some(start)) {
-                Some(hit) => (hit.point, seg, hit.triangle),
-                None => return (p, seg, tri),
-            }
-        }
+        VKind::Free => match walk::walk_or_search(mesh, topo, bvh, tri, p, |_| true) {
+            Some(foot) => (foot.point, seg, foot.triangle),
+            None => return (p, seg, tri),
+        },
     };
     if ops::fan_keeps_orientation(c, v, q, sc) {
         (q, seg, tri)
@@ -417,7 +418,7 @@ pub fn run(
         counts.collapses += collapse_short(c, sizing, &mut sc);
         counts.valence_flips += equalize_valences(c, &mut sc);
         relax(c, sizing);
-        project(c, lines, bvh);
+        project(c, input);
         sizing.follow(c, lines, mesh);
         counts.angle_flips += flip_angles(c, &mut sc);
     }

@@ -456,7 +456,7 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         params.iterations,
         !params.on_surface,
     );
-    let out = export::export(&c, &lines, mesh, &chart_of_input, &bvh);
+    let out = export::export(&c, &lines, mesh, &topo, &chart_of_input, &bvh);
     let report = RemeshReport {
         method: params.method,
         edge_length: l,
