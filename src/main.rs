@@ -6,7 +6,7 @@ use scanmill::mesh::{LoadOptions, MeshError, io};
 use scanmill::process::{ProcessError, process_scan_with_texture};
 use scanmill::recipe::runner::Progress;
 use scanmill::recipe::{Recipe, RecipeError};
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -223,14 +223,22 @@ fn run_inspect(file: &Path, json: bool, weld_tolerance: f64) -> Result<(), (u8, 
     let (mesh, report) = io::load(file, &options).map_err(|e| (mesh_error_code(&e), e.into()))?;
     let summary = MeshSummary::new(&mesh, Some(&report));
     if json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&summary).expect("summary serialises")
-        );
+        let text = serde_json::to_string_pretty(&summary).expect("summary serialises");
+        emit(&format!("{text}\n"))
     } else {
-        println!("{}\n{summary}", file.display());
+        emit(&format!("{}\n{summary}\n", file.display()))
     }
-    Ok(())
+}
+
+/// Writes a command's output to stdout. A reader that stops early (`scanmill inspect … |
+/// head`) closes the pipe: that is the reader's choice, not a failure of the command, so
+/// the rest is dropped quietly, as `cat` does.
+fn emit(text: &str) -> Result<(), (u8, anyhow::Error)> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err((exit::FAILURE, e.into())),
+        _ => Ok(()),
+    }
 }
 
 fn run_compare(
@@ -283,13 +291,12 @@ fn run_compare(
         other => (exit::FAILURE, other.into()),
     })?;
     if json {
-        println!("{}", table.to_json());
+        emit(&format!("{}\n", table.to_json()))
     } else if csv {
-        print!("{}", table.to_csv());
+        emit(&table.to_csv())
     } else {
-        print!("{}", table.to_text());
+        emit(&table.to_text())
     }
-    Ok(())
 }
 
 fn main() -> ExitCode {

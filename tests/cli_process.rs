@@ -332,3 +332,29 @@ fn recipe_errors_name_line_and_choices() {
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
     assert!(!out.exists());
 }
+
+/// `scanmill inspect … | head`: a reader that closes its end before the output is written.
+/// The command ends with success and says nothing (it used to panic with a backtrace).
+#[test]
+fn a_reader_that_stops_early_is_not_an_error() {
+    let input = format!("{DATA}/textured/james_face_stereo_capture/james.obj");
+    for json in [false, true] {
+        let mut args = vec!["inspect", input.as_str()];
+        if json {
+            args.insert(1, "--json");
+        }
+        let mut child = Command::new(env!("CARGO_BIN_EXE_scanmill"))
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The only read end goes before the scan is loaded (tens of milliseconds), so the
+        // summary's write meets a closed pipe.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "json {json}: {stderr}");
+        assert!(stderr.is_empty(), "json {json}: {stderr}");
+    }
+}

@@ -274,9 +274,15 @@ impl From<ConfigError> for CliError {
 }
 
 impl From<std::io::Error> for CliError {
+    /// A write to a reader that stopped reading (`scanmill history | head`) ends the command
+    /// with success and no message: the rest was not wanted, as with `cat`.
     fn from(e: std::io::Error) -> CliError {
+        let code = match e.kind() {
+            std::io::ErrorKind::BrokenPipe => exit::OK,
+            _ => exit::FAILURE,
+        };
         CliError {
-            code: exit::FAILURE,
+            code,
             message: e.to_string(),
         }
     }
@@ -285,6 +291,7 @@ impl From<std::io::Error> for CliError {
 fn report(result: Result<(), CliError>, err: &mut dyn Write) -> u8 {
     match result {
         Ok(()) => exit::OK,
+        Err(e) if e.code == exit::OK => exit::OK,
         Err(e) => {
             let _ = writeln!(err, "scanmill: error: {}", e.message);
             e.code
