@@ -31,57 +31,69 @@ pub struct Neighbourhood {
     manifold: Vec<bool>,
 }
 
+/// The rings of one block of vertices, flattened on its own thread (see [`ring_blocks`]).
+struct Block {
+    ring_lengths: Vec<u32>,
+    fan_lengths: Vec<u32>,
+    ring: Vec<u32>,
+    fan: Vec<u32>,
+    closed: Vec<bool>,
+    manifold: Vec<bool>,
+}
+
+/// Every vertex's ordered ring and fan, in blocks of [`BLOCK`] vertices, each block's
+/// flattened on its own thread: no per-vertex allocation survives the block, so the
+/// transient memory is about one more copy of the result (a Vec per vertex cost ~30 MB for
+/// a 400k-triangle scan, on top of its topology).
+fn ring_blocks(topo: &Topology) -> Vec<Block> {
+    let n = topo.vertex_count();
+    (0..n.div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let vertices = b * BLOCK..((b + 1) * BLOCK).min(n);
+            let mut block = Block {
+                ring_lengths: Vec::with_capacity(vertices.len()),
+                fan_lengths: Vec::with_capacity(vertices.len()),
+                ring: Vec::new(),
+                fan: Vec::new(),
+                closed: Vec::with_capacity(vertices.len()),
+                manifold: Vec::with_capacity(vertices.len()),
+            };
+            let mut buffers = RingBuffers::default();
+            for v in vertices {
+                let (ring_len, fan_len, closed, manifold) =
+                    match topo.ordered_ring_into(v as u32, &mut buffers) {
+                        Some(closed) => {
+                            block.ring.extend_from_slice(&buffers.vertices);
+                            block.fan.extend_from_slice(&buffers.triangles);
+                            (
+                                buffers.vertices.len(),
+                                buffers.triangles.len(),
+                                closed,
+                                true,
+                            )
+                        }
+                        None => (0, 0, false, false),
+                    };
+                block.ring_lengths.push(ring_len as u32);
+                block.fan_lengths.push(fan_len as u32);
+                block.closed.push(closed);
+                block.manifold.push(manifold);
+            }
+            block
+        })
+        .collect()
+}
+
 impl Neighbourhood {
     pub fn new(topo: &Topology) -> Self {
-        let n = topo.vertex_count();
-        // Built in blocks of vertices, each block's rings flattened on its own thread and
-        // the blocks then joined: no per-vertex allocation survives the block, so the
-        // transient memory is about one more copy of the result (a Vec per vertex cost
-        // ~30 MB for a 400k-triangle scan, on top of its topology; issue #8).
-        struct Block {
-            ring_lengths: Vec<u32>,
-            fan_lengths: Vec<u32>,
-            ring: Vec<u32>,
-            fan: Vec<u32>,
-            closed: Vec<bool>,
-            manifold: Vec<bool>,
-        }
-        let blocks: Vec<Block> = (0..n.div_ceil(BLOCK))
-            .into_par_iter()
-            .map(|b| {
-                let vertices = b * BLOCK..((b + 1) * BLOCK).min(n);
-                let mut block = Block {
-                    ring_lengths: Vec::with_capacity(vertices.len()),
-                    fan_lengths: Vec::with_capacity(vertices.len()),
-                    ring: Vec::new(),
-                    fan: Vec::new(),
-                    closed: Vec::with_capacity(vertices.len()),
-                    manifold: Vec::with_capacity(vertices.len()),
-                };
-                let mut buffers = RingBuffers::default();
-                for v in vertices {
-                    let (ring_len, fan_len, closed, manifold) =
-                        match topo.ordered_ring_into(v as u32, &mut buffers) {
-                            Some(closed) => {
-                                block.ring.extend_from_slice(&buffers.vertices);
-                                block.fan.extend_from_slice(&buffers.triangles);
-                                (
-                                    buffers.vertices.len(),
-                                    buffers.triangles.len(),
-                                    closed,
-                                    true,
-                                )
-                            }
-                            None => (0, 0, false, false),
-                        };
-                    block.ring_lengths.push(ring_len as u32);
-                    block.fan_lengths.push(fan_len as u32);
-                    block.closed.push(closed);
-                    block.manifold.push(manifold);
-                }
-                block
-            })
-            .collect();
+        let mut nb = Neighbourhood::joined(ring_blocks(topo), topo.vertex_count());
+        nb.orient = nb.all_orientations();
+        nb
+    }
+
+    /// The blocks' rings and fans in one flat table of `n` vertices (no orientations yet).
+    fn joined(blocks: Vec<Block>, n: usize) -> Neighbourhood {
         let ring_total: usize = blocks.iter().map(|b| b.ring.len()).sum();
         let fan_total: usize = blocks.iter().map(|b| b.fan.len()).sum();
         let mut nb = Neighbourhood {
@@ -106,15 +118,22 @@ impl Neighbourhood {
             nb.closed.extend_from_slice(&block.closed);
             nb.manifold.extend_from_slice(&block.manifold);
         }
-        let orient_blocks: Vec<Vec<i8>> = (0..n.div_ceil(BLOCK))
+        nb
+    }
+
+    /// Per ring entry of every closed ring, the orientation of that neighbour's ring
+    /// relative to the vertex's ([`Neighbourhood::relative_orientation`]); 0 in open rings.
+    fn all_orientations(&self) -> Vec<i8> {
+        let n = self.closed.len();
+        let blocks: Vec<Vec<i8>> = (0..n.div_ceil(BLOCK))
             .into_par_iter()
             .map(|b| {
                 let mut out = Vec::new();
                 for v in b * BLOCK..((b + 1) * BLOCK).min(n) {
-                    let r = nb.ring(v);
+                    let r = self.ring(v);
                     out.extend((0..r.len()).map(|i| {
-                        if nb.closed[v] {
-                            nb.relative_orientation(v as u32, r[i], r[(i + 1) % r.len()])
+                        if self.closed[v] {
+                            self.relative_orientation(v as u32, r[i], r[(i + 1) % r.len()])
                         } else {
                             0
                         }
@@ -123,8 +142,7 @@ impl Neighbourhood {
                 out
             })
             .collect();
-        nb.orient = orient_blocks.concat();
-        nb
+        blocks.concat()
     }
 
     /// Orientation of `j`'s ring relative to `v`'s, where `next` follows `j` in `v`'s ring.

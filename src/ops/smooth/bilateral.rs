@@ -174,6 +174,12 @@ impl Rings {
                 (counts, list, outer)
             })
             .collect();
+        Rings::joined(parts, n)
+    }
+
+    /// The blocks' lists (per block: each vertex's padded count, the lists, the groups'
+    /// outer flags) in one table of `n` vertices.
+    fn joined(parts: Vec<(Vec<u32>, Vec<u32>, Vec<u8>)>, n: usize) -> Rings {
         let mut rings = Rings {
             offsets: Vec::with_capacity(n + 1),
             list: Vec::with_capacity(parts.iter().map(|p| p.1.len()).sum()),
