@@ -3,7 +3,7 @@
 use clap::{Parser, Subcommand};
 use scanmill::mesh::summary::MeshSummary;
 use scanmill::mesh::{LoadOptions, MeshError, io};
-use scanmill::process::{ProcessError, process_scan_with_texture};
+use scanmill::process::{ProcessError, ProcessOptions, process_scan_with_options};
 use scanmill::recipe::runner::Progress;
 use scanmill::recipe::{Recipe, RecipeError};
 use std::io::{IsTerminal, Write};
@@ -171,8 +171,12 @@ fn run_process(
 ) -> Result<(), (u8, anyhow::Error)> {
     let recipe = load_recipe(recipe_path)?;
     let progress = TerminalProgress::new();
+    let options = ProcessOptions {
+        texture: texture.map(Path::to_path_buf),
+        ..ProcessOptions::default()
+    };
     let result =
-        process_scan_with_texture(input, texture, &recipe, Some(recipe_path), out, &progress);
+        process_scan_with_options(input, &options, &recipe, Some(recipe_path), out, &progress);
     progress.finish();
     let result = result.map_err(|e| {
         let code = match &e {

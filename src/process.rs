@@ -1,6 +1,6 @@
 //! One scan through one recipe: load, run the steps, write the result into an output
 //! folder without ever leaving a half-written file there, and build the report.
-//! `scanmill process` and the daemon's worker both call [`process_scan`].
+//! `scanmill process` and the daemon's worker both call [`process_scan_with_options`].
 
 use crate::daemon::publish::SIDECAR_SUFFIX;
 use crate::mesh::files::open_regular;
@@ -53,8 +53,9 @@ impl ProcessError {
 /// How `process` treats its input, beyond the recipe.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ProcessOptions {
-    /// The texture image of an OBJ that names no material library (see
-    /// [`process_scan_with_texture`]).
+    /// The texture image of an OBJ that names no material library (facefuns, some scanner
+    /// exports): it becomes the OBJ's diffuse texture. Ignored, with a warning, when the OBJ
+    /// declares materials of its own.
     pub texture: Option<PathBuf>,
     /// Input limits: `scanmill process` uses the defaults, the daemon its `[limits]` table.
     pub limits: InputLimits,
@@ -211,35 +212,6 @@ fn renumbers_anyway(recipe: &Recipe) -> bool {
     recipe.steps.iter().any(|s| matches!(s, Step::Decimate(_)))
 }
 
-/// Processes one scan. The result lands in `out_dir` only if everything succeeded.
-pub fn process_scan(
-    input: &Path,
-    recipe: &Recipe,
-    recipe_path: Option<&Path>,
-    out_dir: &Path,
-    progress: &dyn Progress,
-) -> Result<Report, ProcessError> {
-    process_scan_with_texture(input, None, recipe, recipe_path, out_dir, progress)
-}
-
-/// [`process_scan`] for an OBJ that names no material library (facefuns, some scanner
-/// exports): `texture` becomes its diffuse texture. Ignored, with a warning, when the OBJ
-/// declares materials of its own.
-pub fn process_scan_with_texture(
-    input: &Path,
-    texture: Option<&Path>,
-    recipe: &Recipe,
-    recipe_path: Option<&Path>,
-    out_dir: &Path,
-    progress: &dyn Progress,
-) -> Result<Report, ProcessError> {
-    let options = ProcessOptions {
-        texture: texture.map(Path::to_path_buf),
-        ..ProcessOptions::default()
-    };
-    process_scan_with_options(input, &options, recipe, recipe_path, out_dir, progress)
-}
-
 /// The hash of an input file, read only if it is a regular file (a FIFO or device is refused
 /// at once, never waited on).
 fn hash_input(path: &Path) -> Result<FileHash, MeshError> {
@@ -247,7 +219,8 @@ fn hash_input(path: &Path) -> Result<FileHash, MeshError> {
     FileHash::of_reader(path, file).map_err(|e| MeshError::io(path, e))
 }
 
-/// [`process_scan`] with every option: the one entry point the CLI and the daemon share.
+/// Processes one scan: the one entry point the CLI and the daemon share. The result lands in
+/// `out_dir` only if everything succeeded.
 pub fn process_scan_with_options(
     input: &Path,
     process_options: &ProcessOptions,

@@ -230,8 +230,9 @@ fn process_report_carries_final_metrics() {
         Path::new("normals.toml"),
     )
     .unwrap();
-    let report = scanmill::process::process_scan(
+    let report = scanmill::process::process_scan_with_options(
         &Path::new(DATA).join(SCANS[0]),
+        &scanmill::process::ProcessOptions::default(),
         &recipe,
         None,
         out.path(),

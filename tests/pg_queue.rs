@@ -571,8 +571,8 @@ fn new_job(i: usize) -> scanmill::store::NewJob {
 }
 
 fn done_finish() -> scanmill::store::Finish {
-    use scanmill::store::{Finish, MeshSizes, OutputFile, StepRow};
-    Finish::Done {
+    use scanmill::store::{Finish, JobDone, MeshSizes, OutputFile, StepRow};
+    Finish::Done(JobDone {
         output_dir: "/out/s".into(),
         preview: None,
         outputs: vec![OutputFile {
@@ -592,7 +592,7 @@ fn done_finish() -> scanmill::store::Finish {
             faces_after: 1,
             figures_json: "{}".into(),
         }],
-    }
+    })
 }
 
 fn queue_overhead(server: &PgServer) {

@@ -73,9 +73,15 @@ fn a_preview_that_cannot_be_drawn_does_not_fail_the_job() {
     recipe.preview.size = 8;
     let tmp = tempfile::tempdir().unwrap();
     let input = format!("{DATA}/textured/james_face_stereo_capture/james.obj");
-    let report =
-        scanmill::process::process_scan(input.as_ref(), &recipe, None, tmp.path(), &NoProgress)
-            .unwrap();
+    let report = scanmill::process::process_scan_with_options(
+        input.as_ref(),
+        &scanmill::process::ProcessOptions::default(),
+        &recipe,
+        None,
+        tmp.path(),
+        &NoProgress,
+    )
+    .unwrap();
     assert!(report.preview.is_none());
     assert!(tmp.path().join("james.obj").is_file());
     assert!(!tmp.path().join("james.preview.png").exists());

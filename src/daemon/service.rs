@@ -824,8 +824,8 @@ impl Service {
                     "fenced out: its lease had expired and another host took the job over; nothing published"
                 )
             }
-            (Finish::Done { output_dir, .. }, _) => {
-                tracing::info!(job_id = id, output = %output_dir, wall_ms, "done")
+            (Finish::Done(done), _) => {
+                tracing::info!(job_id = id, output = %done.output_dir, wall_ms, "done")
             }
             (Finish::Failed { kind, message, .. }, s) => {
                 tracing::warn!(job_id = id, kind = %kind, state = ?s, "failed: {}", crate::text::bounded(message, crate::text::MAX_SHOWN))

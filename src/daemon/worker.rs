@@ -17,7 +17,7 @@ use crate::process::output_stem;
 use crate::recipe::Recipe;
 use crate::report::Report;
 use crate::store::FailureKind;
-use crate::store::{ClaimedJob, Finish, MeshSizes, OutputFile, Owner, StepRow, now_ms};
+use crate::store::{ClaimedJob, Finish, JobDone, MeshSizes, OutputFile, Owner, StepRow, now_ms};
 use serde_json::json;
 use std::panic::AssertUnwindSafe;
 use std::path::{Path, PathBuf};
@@ -415,7 +415,7 @@ fn done(report: Report, final_dir: &Path) -> Finish {
         .as_ref()
         .and_then(|p| p.file.path.file_name())
         .map(|name| final_dir.join(name).to_string_lossy().into_owned());
-    Finish::Done {
+    Finish::Done(JobDone {
         output_dir: final_dir.to_string_lossy().into_owned(),
         preview,
         outputs,
@@ -428,7 +428,7 @@ fn done(report: Report, final_dir: &Path) -> Finish {
         },
         process_ms: report.total_ms,
         steps,
-    }
+    })
 }
 
 /// The text a panic carried (`panic!` with a literal or a formatted message).

@@ -1,7 +1,7 @@
 //! The worker side of a daemon job: `scanmill worker`, started by the daemon for one job.
 //!
 //! It loads the recipe (and checks it is the one the job was queued with), runs the same
-//! [`crate::process::process_scan`] as `scanmill process` into the staging folder it is
+//! [`crate::process::process_scan_with_options`] as `scanmill process` into the staging folder it is
 //! given, and reports on standard output in the [`super::protocol`]. It never publishes and
 //! never touches the database: whatever happens in here (a panic, an abort, running out of
 //! memory, a signal) ends this process only, and the daemon records it as the job's failure.

@@ -5,6 +5,7 @@
 //! IMMEDIATE`, so that a reader turned writer can never fail on a stale snapshot. The
 //! daemon owns one connection; the command line opens its own, short-lived ones.
 
+mod attempt;
 pub mod backend;
 mod failure;
 pub mod pg;
@@ -12,10 +13,12 @@ pub mod query;
 pub mod relpath;
 pub mod schema;
 
+pub use attempt::backoff_ms;
 pub use backend::{Queue, StoreConfig};
 pub use failure::FailureKind;
 pub use relpath::RelPath;
 
+use attempt::{AttemptEnd, AttemptRecord, AttemptWriter, FailurePlan, record_end};
 use rusqlite::{Connection, OpenFlags, OptionalExtension, TransactionBehavior, params};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -193,16 +196,7 @@ pub struct ClaimedJob {
 /// How an attempt ended, as the worker reports it.
 #[derive(Debug, Clone)]
 pub enum Finish {
-    Done {
-        output_dir: String,
-        /// The preview picture, if one was drawn.
-        preview: Option<String>,
-        outputs: Vec<OutputFile>,
-        report_json: String,
-        counts: MeshSizes,
-        process_ms: f64,
-        steps: Vec<StepRow>,
-    },
+    Done(JobDone),
     /// Failed; retried later if `transient` and attempts remain.
     Failed {
         kind: FailureKind,
@@ -210,7 +204,22 @@ pub enum Finish {
         transient: bool,
     },
     /// The run was stopped (shutdown, crash): back to queued, not counted as an attempt.
-    Interrupted { reason: String },
+    Interrupted {
+        reason: String,
+    },
+}
+
+/// A job done: what its row, its published files and its step timings record.
+#[derive(Debug, Clone)]
+pub struct JobDone {
+    pub output_dir: String,
+    /// The preview picture, if one was drawn.
+    pub preview: Option<String>,
+    pub outputs: Vec<OutputFile>,
+    pub report_json: String,
+    pub counts: MeshSizes,
+    pub process_ms: f64,
+    pub steps: Vec<StepRow>,
 }
 
 /// A published output file, as `job_output` records it.
@@ -304,29 +313,6 @@ pub(crate) fn cut(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
         end -= 1;
     }
     format!("{}…", &text[..end]).into()
-}
-
-/// Where a failed attempt leaves its job, in both stores: (job state, retryable, attempt
-/// outcome, final state). Failed for good unless transient; quarantined when transient with
-/// no attempts left; retried later otherwise.
-pub(crate) fn failure_disposition(
-    transient: bool,
-    job: &ClaimedJob,
-) -> (&'static str, i64, &'static str, FinalState) {
-    if !transient {
-        ("failed", 0, "failed", FinalState::Failed)
-    } else if job.attempt >= job.max_attempts {
-        ("quarantined", 0, "quarantined", FinalState::Quarantined)
-    } else {
-        ("failed", 1, "retry", FinalState::RetryLater)
-    }
-}
-
-/// Exponential backoff after `attempts` counted failures: base·2^(attempts-1), capped.
-pub fn backoff_ms(attempts: u32, base_secs: f64, max_secs: f64) -> i64 {
-    let exp = attempts.saturating_sub(1).min(30) as i32;
-    let secs = (base_secs * 2f64.powi(exp)).min(max_secs);
-    (secs * 1000.0) as i64
 }
 
 pub struct Store {
@@ -623,56 +609,15 @@ impl Store {
         retry: RetryPolicy,
         wall_ms: f64,
     ) -> Result<FinalState> {
-        let now = now_ms();
         let path = self.path.clone();
         let sq = sqlite_error(&path);
-        let tx = self.immediate()?;
-        let final_state = match outcome {
-            Finish::Done {
-                output_dir,
-                preview,
-                outputs,
-                report_json,
-                counts,
-                process_ms,
-                steps,
-            } => {
-                tx.execute(
-                    "UPDATE job SET state='done', retryable=0, finished_at=?2, updated_at=?2, lease_owner=NULL,
-                        output_dir=?3, error_kind=NULL, error=NULL, in_vertices=?4, in_faces=?5,
-                        out_vertices=?6, out_faces=?7, process_ms=?8, report_json=?9, preview=?10 WHERE id=?1",
-                    params![
-                        job.id,
-                        now,
-                        output_dir,
-                        counts.in_vertices,
-                        counts.in_faces,
-                        counts.out_vertices,
-                        counts.out_faces,
-                        process_ms,
-                        report_json,
-                        preview
-                    ],
-                )
-                .map_err(sq)?;
-                insert_outputs(&tx, job.id, outputs).map_err(sq)?;
-                insert_step_timings(&tx, job.attempt_id, steps).map_err(sq)?;
-                close_attempt(&tx, job.attempt_id, now, "ok", None, None, wall_ms).map_err(sq)?;
-                FinalState::Done
-            }
-            Finish::Failed {
-                kind,
-                message,
-                transient,
-            } => {
-                let end = AttemptEnd { job, now, wall_ms };
-                record_failure(&tx, &end, *kind, message, *transient, retry).map_err(sq)?
-            }
-            Finish::Interrupted { reason } => {
-                let end = AttemptEnd { job, now, wall_ms };
-                record_interruption(&tx, &end, reason).map_err(sq)?
-            }
+        let mut tx = self.immediate()?;
+        let end = AttemptEnd {
+            job,
+            now: now_ms(),
+            wall_ms,
         };
+        let final_state = record_end(&mut tx, &end, outcome, retry).map_err(sq)?;
         tx.commit().map_err(sq)?;
         Ok(final_state)
     }
@@ -855,13 +800,6 @@ fn load_inputs(conn: &Connection, id: i64) -> rusqlite::Result<Vec<InputMember>>
     rows.collect()
 }
 
-/// The attempt that ends: its job, when and after how long.
-struct AttemptEnd<'j> {
-    job: &'j ClaimedJob,
-    now: i64,
-    wall_ms: f64,
-}
-
 /// The job's published files, replacing any recorded before.
 fn insert_outputs(
     tx: &rusqlite::Transaction<'_>,
@@ -904,74 +842,70 @@ fn insert_step_timings(
     Ok(())
 }
 
-/// A failed attempt: failed for good, quarantined (transient, no attempts left) or retried
-/// after the back-off.
-fn record_failure(
-    tx: &rusqlite::Transaction<'_>,
-    end: &AttemptEnd<'_>,
-    kind: FailureKind,
-    message: &str,
-    transient: bool,
-    retry: RetryPolicy,
-) -> rusqlite::Result<FinalState> {
-    let (job, now) = (end.job, end.now);
-    let (state, retryable, outcome, fs) = failure_disposition(transient, job);
-    let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
-    let message = cut(message, MAX_ERROR_BYTES);
-    tx.execute(
-        "UPDATE job SET state=?2, retryable=?3, run_after=?4, finished_at=?5, updated_at=?5,
-            lease_owner=NULL, error_kind=?6, error=?7 WHERE id=?1",
-        params![job.id, state, retryable, run_after, now, kind, message],
-    )?;
-    close_attempt(
-        tx,
-        job.attempt_id,
-        now,
-        outcome,
-        Some(kind),
-        Some(&message),
-        end.wall_ms,
-    )?;
-    Ok(fs)
-}
+/// The rows that end an attempt, in SQLite's dialect.
+impl AttemptWriter for rusqlite::Transaction<'_> {
+    type Error = rusqlite::Error;
 
-/// An interrupted attempt: the job goes back to the queue, the attempt not counted.
-fn record_interruption(
-    tx: &rusqlite::Transaction<'_>,
-    end: &AttemptEnd<'_>,
-    reason: &str,
-) -> rusqlite::Result<FinalState> {
-    tx.execute(
-        "UPDATE job SET state='queued', attempts=max(attempts-1, 0), run_after=?2, updated_at=?2,
-            lease_owner=NULL WHERE id=?1",
-        params![end.job.id, end.now],
-    )?;
-    close_attempt(
-        tx,
-        end.job.attempt_id,
-        end.now,
-        "interrupted",
-        Some(FailureKind::Interrupted),
-        Some(reason),
-        end.wall_ms,
-    )?;
-    Ok(FinalState::Requeued)
-}
+    fn job_done(&mut self, end: &AttemptEnd<'_>, done: &JobDone) -> rusqlite::Result<()> {
+        self.execute(
+            "UPDATE job SET state='done', retryable=0, finished_at=?2, updated_at=?2, lease_owner=NULL,
+                output_dir=?3, error_kind=NULL, error=NULL, in_vertices=?4, in_faces=?5,
+                out_vertices=?6, out_faces=?7, process_ms=?8, report_json=?9, preview=?10 WHERE id=?1",
+            params![
+                end.job.id,
+                end.now,
+                done.output_dir,
+                done.counts.in_vertices,
+                done.counts.in_faces,
+                done.counts.out_vertices,
+                done.counts.out_faces,
+                done.process_ms,
+                done.report_json,
+                done.preview
+            ],
+        )?;
+        insert_outputs(self, end.job.id, &done.outputs)?;
+        insert_step_timings(self, end.job.attempt_id, &done.steps)
+    }
 
-fn close_attempt(
-    tx: &rusqlite::Transaction<'_>,
-    attempt_id: i64,
-    now: i64,
-    outcome: &str,
-    kind: Option<FailureKind>,
-    message: Option<&str>,
-    wall_ms: f64,
-) -> rusqlite::Result<()> {
-    tx.execute(
-        "UPDATE attempt SET finished_at=?2, outcome=?3, error_kind=?4, error=?5, wall_ms=?6 WHERE id=?1",
-        params![attempt_id, now, outcome, kind, message, wall_ms],
-    )?;
-    Ok(())
+    fn job_failed(
+        &mut self,
+        end: &AttemptEnd<'_>,
+        kind: FailureKind,
+        plan: &FailurePlan<'_>,
+    ) -> rusqlite::Result<()> {
+        self.execute(
+            "UPDATE job SET state=?2, retryable=?3, run_after=?4, finished_at=?5, updated_at=?5,
+                lease_owner=NULL, error_kind=?6, error=?7 WHERE id=?1",
+            params![
+                end.job.id,
+                plan.state,
+                plan.retryable,
+                plan.run_after,
+                end.now,
+                kind,
+                plan.message
+            ],
+        )?;
+        Ok(())
+    }
+
+    fn job_requeued(&mut self, end: &AttemptEnd<'_>) -> rusqlite::Result<()> {
+        self.execute(
+            "UPDATE job SET state='queued', attempts=max(attempts-1, 0), run_after=?2, updated_at=?2,
+                lease_owner=NULL WHERE id=?1",
+            params![end.job.id, end.now],
+        )?;
+        Ok(())
+    }
+
+    fn close_attempt(&mut self, a: &AttemptRecord<'_>) -> rusqlite::Result<()> {
+        self.execute(
+            "UPDATE attempt SET finished_at=?2, outcome=?3, error_kind=?4, error=?5, wall_ms=?6 WHERE id=?1",
+            params![a.attempt_id, a.finished_at, a.outcome, a.kind, a.message, a.wall_ms],
+        )?;
+        Ok(())
+    }
 }
 
 #[cfg(test)]

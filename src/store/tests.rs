@@ -167,7 +167,7 @@ fn claim_finish_done_records_everything() {
     assert_eq!(c.attempt, 1);
     assert_eq!(c.inputs.len(), 1);
     assert!(s.claim(&owner()).unwrap().is_none(), "only one job");
-    let fin = Finish::Done {
+    let fin = Finish::Done(JobDone {
         output_dir: "/out/a".into(),
         preview: Some("/out/a/a.preview.png".into()),
         outputs: vec![OutputFile {
@@ -192,7 +192,7 @@ fn claim_finish_done_records_everything() {
             faces_after: 2,
             figures_json: "{}".into(),
         }],
-    };
+    });
     assert_eq!(
         s.finish(&c, &fin, retry(1.0, 10.0), 6.0).unwrap(),
         FinalState::Done

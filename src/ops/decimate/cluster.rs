@@ -276,7 +276,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
                         .map(|q| q.split().0)
                         .unwrap_or_default();
                         // from_triangle weights by area; eq. 3.1 sums unit planes.
-                        let area = fq.alpha.max(f64::MIN_POSITIVE);
+                        let area = fq.attr.alpha.max(f64::MIN_POSITIVE);
                         let mut g = unit;
                         for x in g.m.iter_mut() {
                             *x /= area;
@@ -468,7 +468,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
                 let node = &self.nodes[id];
                 self.order[node.lo as usize..node.hi as usize]
                     .iter()
-                    .map(|&v| self.vq[v as usize].alpha)
+                    .map(|&v| self.vq[v as usize].attr.alpha)
                     .sum()
             };
             let error = (cost.max(0.0) / area.max(f64::MIN_POSITIVE)).sqrt();

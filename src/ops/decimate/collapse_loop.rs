@@ -39,17 +39,21 @@ pub trait CollapseOperator: Sync {
     ) -> Result<Plan, Refusal>;
 
     /// The priority of triangle `u`, whose corner `k` is the vertex a collapse left; `side`
-    /// as in [`CollapseOperator::candidate`], `memo` shared by the fan of one collapse.
+    /// as in [`CollapseOperator::candidate`], `memo` shared by the fan of one collapse. By
+    /// default the candidate is costed afresh; an operator that can reuse what it knows of
+    /// the fan (its current key, costs shared by two triangles) overrides this.
     #[allow(clippy::too_many_arguments)]
     fn rekey<const M: usize>(
         &self,
         work: &Work<M>,
         u: usize,
-        k: usize,
-        heap: &IndexedHeap,
+        _k: usize,
+        _heap: &IndexedHeap,
         side: &mut u8,
-        memo: &mut Vec<(u32, Result<f64, Refusal>)>,
-    ) -> Result<f64, Refusal>;
+        _memo: &mut Vec<(u32, Result<f64, Refusal>)>,
+    ) -> Result<f64, Refusal> {
+        self.candidate(work, u, side)
+    }
 
     /// Calls `f` with the vertices of every candidate left, each once.
     fn for_each_candidate<const M: usize>(&self, work: &Work<M>, f: &mut dyn FnMut(&[u32]));
@@ -84,30 +88,7 @@ impl CollapseOperator for FaceCollapse {
         sc: &mut Scratch<M>,
         stats: &mut LoopStats,
     ) -> Result<Plan, Refusal> {
-        let s = vertices(work, t);
-        stats.evaluations += 1;
-        let plan = work.evaluate(&s, sc)?;
-        if plan.error > max_error {
-            return Err(Refusal::MaxError);
-        }
-        work.check(&plan, sc)?;
-        if plan.fallback {
-            stats.ill_conditioned += 1;
-        }
-        work.apply(&plan, sc);
-        Ok(plan)
-    }
-
-    fn rekey<const M: usize>(
-        &self,
-        work: &Work<M>,
-        u: usize,
-        _k: usize,
-        _heap: &IndexedHeap,
-        side: &mut u8,
-        _memo: &mut Vec<(u32, Result<f64, Refusal>)>,
-    ) -> Result<f64, Refusal> {
-        self.candidate(work, u, side)
+        collapse(work, &vertices(work, t), max_error, sc, stats)
     }
 
     fn for_each_candidate<const M: usize>(&self, work: &Work<M>, f: &mut dyn FnMut(&[u32])) {
@@ -115,6 +96,28 @@ impl CollapseOperator for FaceCollapse {
             f(&work.tv[t]);
         }
     }
+}
+
+/// Collapses the vertices `s` if the merge's error is within `max_error` and it passes the
+/// guards; on success the scratch holds the merge. Both operators' one collapse.
+pub(super) fn collapse<const M: usize>(
+    work: &mut Work<M>,
+    s: &[u32],
+    max_error: f64,
+    sc: &mut Scratch<M>,
+    stats: &mut LoopStats,
+) -> Result<Plan, Refusal> {
+    stats.evaluations += 1;
+    let plan = work.evaluate(s, sc)?;
+    if plan.error > max_error {
+        return Err(Refusal::MaxError);
+    }
+    work.check(&plan, sc)?;
+    if plan.fallback {
+        stats.ill_conditioned += 1;
+    }
+    work.apply(&plan, sc);
+    Ok(plan)
 }
 
 /// The triangles not yet collapsed.

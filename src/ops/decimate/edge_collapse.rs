@@ -4,7 +4,7 @@
 //! ([`super::collapse_loop`]).
 
 use super::Refusal;
-use super::collapse_loop::{CollapseOperator, LoopStats, live_triangles};
+use super::collapse_loop::{CollapseOperator, LoopStats, collapse, live_triangles};
 use super::heap::IndexedHeap;
 use super::work::{Plan, Scratch, Work};
 
@@ -85,27 +85,9 @@ impl CollapseOperator for EdgeCollapse {
                             sc: &mut Scratch<M>,
                             stats: &mut LoopStats|
          -> Option<Plan> {
-            stats.evaluations += 1;
-            let plan = match work.evaluate(&all[i], sc) {
-                Ok(p) => p,
-                Err(c) => {
-                    eval_cause = Some(c);
-                    return None;
-                }
-            };
-            if plan.error > max_error {
-                eval_cause = Some(Refusal::MaxError);
-                return None;
-            }
-            if let Err(c) = work.check(&plan, sc) {
-                eval_cause = Some(c);
-                return None;
-            }
-            if plan.fallback {
-                stats.ill_conditioned += 1;
-            }
-            work.apply(&plan, sc);
-            Some(plan)
+            collapse(work, &all[i], max_error, sc, stats)
+                .map_err(|c| eval_cause = Some(c))
+                .ok()
         };
         let first = best.filter(|b| b.1.is_finite()).map(|b| b.0);
         if let Some(i) = first

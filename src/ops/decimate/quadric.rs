@@ -25,29 +25,19 @@ pub struct Weights<const M: usize> {
 /// The compact attribute-extended quadric over (position, m attributes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Quadric<const M: usize> {
-    /// Symmetric 3×3 block, weighted: xx, xy, xz, yy, yz, zz.
-    pub p: [f64; 6],
-    /// Linear term of the position, weighted.
-    pub beta: [f64; 3],
-    /// Constant, weighted.
-    pub c: f64,
-    /// Σ a·g_j (unweighted), one gradient per attribute.
-    pub g: [[f64; 3]; M],
-    /// Σ a·d_j (unweighted).
-    pub delta: [f64; M],
-    /// Σ a, the area the quadric was summed over.
-    pub alpha: f64,
+    /// The position part, weighted: the symmetric 3×3 block `p` (as `m`: xx, xy, xz, yy, yz,
+    /// zz), the linear term `beta` (as `r`) and the constant `c`. Its type is that of the
+    /// reduced system, which is this part once the attribute blocks are eliminated.
+    pub pos: Reduced,
+    /// The attribute block, unweighted (its `alpha` is the area the quadric was summed over).
+    pub attr: AttrPart<M>,
 }
 
 impl<const M: usize> Default for Quadric<M> {
     fn default() -> Self {
         Quadric {
-            p: [0.0; 6],
-            beta: [0.0; 3],
-            c: 0.0,
-            g: [[0.0; 3]; M],
-            delta: [0.0; M],
-            alpha: 0.0,
+            pos: Reduced::default(),
+            attr: AttrPart::default(),
         }
     }
 }
@@ -135,22 +125,20 @@ impl<const M: usize> Quadric<M> {
         // reading R1: d = −n·p1 so that n·v + d is the signed distance of v from the plane.
         let d = -dot(n, p[0]);
         let (g, dj) = attribute_gradients(p, s)?;
-        let mut q = Quadric::<M> {
-            alpha: area,
-            ..Default::default()
-        };
-        sym_outer_add(&mut q.p, n, area * w.geom);
-        q.beta = scale(n, area * w.geom * d);
-        q.c = area * w.geom * d * d;
+        let mut q = Quadric::<M>::default();
+        q.attr.alpha = area;
+        sym_outer_add(&mut q.pos.m, n, area * w.geom);
+        q.pos.r = scale(n, area * w.geom * d);
+        q.pos.c = area * w.geom * d * d;
         for j in 0..M {
             let wj = area * w.attr[j];
-            sym_outer_add(&mut q.p, g[j], wj);
+            sym_outer_add(&mut q.pos.m, g[j], wj);
             for k in 0..3 {
-                q.beta[k] += wj * dj[j] * g[j][k];
+                q.pos.r[k] += wj * dj[j] * g[j][k];
             }
-            q.c += wj * dj[j] * dj[j];
-            q.g[j] = scale(g[j], area);
-            q.delta[j] = area * dj[j];
+            q.pos.c += wj * dj[j] * dj[j];
+            q.attr.g[j] = scale(g[j], area);
+            q.attr.delta[j] = area * dj[j];
         }
         Some(q)
     }
@@ -161,81 +149,35 @@ impl<const M: usize> Quadric<M> {
     pub fn plane(n: [f64; 3], point: [f64; 3], weight: f64) -> Self {
         let d = -dot(n, point);
         let mut q = Quadric::<M>::default();
-        sym_outer_add(&mut q.p, n, weight);
-        q.beta = scale(n, weight * d);
-        q.c = weight * d * d;
+        sym_outer_add(&mut q.pos.m, n, weight);
+        q.pos.r = scale(n, weight * d);
+        q.pos.c = weight * d * d;
         q
     }
 
     #[inline]
     pub fn add(&mut self, o: &Self) {
-        for k in 0..6 {
-            self.p[k] += o.p[k];
-        }
-        for k in 0..3 {
-            self.beta[k] += o.beta[k];
-        }
-        self.c += o.c;
-        add_attr(
-            (&mut self.g, &mut self.delta, &mut self.alpha),
-            (&o.g, &o.delta, o.alpha),
-        );
+        self.pos.add(&o.pos);
+        self.attr.add(&o.attr);
     }
 
-    /// The optimal attributes at position `p` (§2.3.3 [D]): the area-weighted mean of the
-    /// summed faces' linear predictions, independent of the weights. `None` without area.
+    /// The optimal attributes at position `p`: see [`AttrPart::attributes_at`].
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
-        attributes_at(&self.g, &self.delta, self.alpha, p)
+        self.attr.attributes_at(p)
     }
 
     /// Q(p, s) = xᵀAx + 2bᵀx + c for x = (p; s) (eq. 2.12 evaluation), compact form.
     pub fn eval(&self, p: [f64; 3], s: &[f64; M], w: &Weights<M>) -> f64 {
-        let mut q = dot(p, sym_mul(&self.p, p)) + 2.0 * dot(self.beta, p) + self.c;
+        let pos = &self.pos;
+        let mut q = dot(p, sym_mul(&pos.m, p)) + 2.0 * dot(pos.r, p) + pos.c;
+        let a = &self.attr;
         for j in 0..M {
             q += w.attr[j]
-                * (self.alpha * s[j] * s[j]
-                    - 2.0 * s[j] * dot(self.g[j], p)
-                    - 2.0 * self.delta[j] * s[j]);
+                * (a.alpha * s[j] * s[j] - 2.0 * s[j] * dot(a.g[j], p) - 2.0 * a.delta[j] * s[j]);
         }
         q
     }
-}
-
-/// Adds the attribute part `(g, delta, alpha)` of `o` to `s`: shared by the full quadric and
-/// [`AttrPart`], which hold the same three fields.
-#[inline]
-fn add_attr<const M: usize>(
-    s: (&mut [[f64; 3]; M], &mut [f64; M], &mut f64),
-    o: (&[[f64; 3]; M], &[f64; M], f64),
-) {
-    for j in 0..M {
-        for k in 0..3 {
-            s.0[j][k] += o.0[j][k];
-        }
-        s.1[j] += o.1[j];
-    }
-    *s.2 += o.2;
-}
-
-/// The optimal attributes at position `p` (§2.3.3 [D]) of an attribute part `(g, delta,
-/// alpha)`: the area-weighted mean of the summed faces' linear predictions. `None` without
-/// area.
-#[inline]
-fn attributes_at<const M: usize>(
-    g: &[[f64; 3]; M],
-    delta: &[f64; M],
-    alpha: f64,
-    p: [f64; 3],
-) -> Option<[f64; M]> {
-    if !(alpha > 0.0) {
-        return None;
-    }
-    let mut s = [0.0; M];
-    for j in 0..M {
-        s[j] = (dot(g[j], p) + delta[j]) / alpha;
-    }
-    Some(s)
 }
 
 /// The attribute part of a wedge quadric, `(Σ a·g_j, Σ a·d_j, Σ a)`: what the wedge-aware
@@ -261,16 +203,27 @@ impl<const M: usize> Default for AttrPart<M> {
 impl<const M: usize> AttrPart<M> {
     #[inline]
     pub fn add(&mut self, o: &Self) {
-        add_attr(
-            (&mut self.g, &mut self.delta, &mut self.alpha),
-            (&o.g, &o.delta, o.alpha),
-        );
+        for j in 0..M {
+            for k in 0..3 {
+                self.g[j][k] += o.g[j][k];
+            }
+            self.delta[j] += o.delta[j];
+        }
+        self.alpha += o.alpha;
     }
 
-    /// Optimal attributes at `p` (§2.3.3 [D]), `None` without area.
+    /// The optimal attributes at position `p` (§2.3.3 [D]): the area-weighted mean of the
+    /// summed faces' linear predictions, independent of the weights. `None` without area.
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
-        attributes_at(&self.g, &self.delta, self.alpha, p)
+        if !(self.alpha > 0.0) {
+            return None;
+        }
+        let mut s = [0.0; M];
+        for j in 0..M {
+            s[j] = (dot(self.g[j], p) + self.delta[j]) / self.alpha;
+        }
+        Some(s)
     }
 
     /// How much attributes `s` cost above the optimum at `p`: for fixed `p` the quadric is
@@ -487,18 +440,7 @@ impl<const M: usize> WedgeAttrs<M> {
 impl<const M: usize> Quadric<M> {
     /// Splits into the (unreduced) position part and the attribute part.
     pub fn split(&self) -> (Reduced, AttrPart<M>) {
-        (
-            Reduced {
-                m: self.p,
-                r: self.beta,
-                c: self.c,
-            },
-            AttrPart {
-                g: self.g,
-                delta: self.delta,
-                alpha: self.alpha,
-            },
-        )
+        (self.pos, self.attr)
     }
 }
 
@@ -508,7 +450,7 @@ impl<const M: usize> Quadric<M> {
 /// `M = Σ_w P_w − Σ_w Σ_j w_j G_wj G_wjᵀ / α_w`, `r = Σ_w β_w − Σ_w Σ_j w_j δ_wj G_wj / α_w`,
 /// and each wedge's optimal attributes are `s_wj = (G_wj·p + δ_wj)/α_w`. Only a 3×3 system
 /// is ever solved, in O(k·m).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Reduced {
     pub m: [f64; 6],
     pub r: [f64; 3],
@@ -556,11 +498,7 @@ impl Reduced {
 
     /// Adds a plane-only quadric (no wedge block).
     pub fn add_plane<const M: usize>(&mut self, q: &Quadric<M>) {
-        self.add(&Reduced {
-            m: q.p,
-            r: q.beta,
-            c: q.c,
-        });
+        self.add(&q.pos);
     }
 
     /// Q_red at `p` (attributes optimal for `p`), clamped at 0 against round-off.
@@ -699,19 +637,19 @@ pub fn dense_wedge_system<const M: usize>(
     for (k, q) in wedges.iter().enumerate() {
         for r in 0..3 {
             for s in 0..3 {
-                a[r][s] += q.p[idx[r][s]];
+                a[r][s] += q.pos.m[idx[r][s]];
             }
-            b[r] += q.beta[r];
+            b[r] += q.pos.r[r];
         }
-        c += q.c;
+        c += q.pos.c;
         for j in 0..M {
             let col = 3 + k * M + j;
             for r in 0..3 {
-                a[r][col] = -w.attr[j] * q.g[j][r];
-                a[col][r] = -w.attr[j] * q.g[j][r];
+                a[r][col] = -w.attr[j] * q.attr.g[j][r];
+                a[col][r] = -w.attr[j] * q.attr.g[j][r];
             }
-            a[col][col] = w.attr[j] * q.alpha;
-            b[col] = -w.attr[j] * q.delta[j];
+            a[col][col] = w.attr[j] * q.attr.alpha;
+            b[col] = -w.attr[j] * q.attr.delta[j];
         }
     }
     (a, b, c)
@@ -814,7 +752,7 @@ mod tests {
         let x = [0, 1, 2].map(|k| p[0][k] + 0.1 * n[k]);
         let sv = q.attributes_at(x).unwrap();
         assert!((sv[0] - s[0][0]).abs() < 1e-12 && (sv[1] - s[0][1]).abs() < 1e-12);
-        assert!((q.eval(x, &sv, &W2) - q.alpha * 0.01).abs() < 1e-12);
+        assert!((q.eval(x, &sv, &W2) - q.attr.alpha * 0.01).abs() < 1e-12);
     }
 
     #[test]

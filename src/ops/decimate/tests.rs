@@ -1,7 +1,7 @@
 //! Unit tests of the collapse machinery on generated shapes.
 
 use super::*;
-use crate::mesh::shapes::{grid, uv_sphere};
+use crate::mesh::shapes::{assert_faces_outward, grid, uv_sphere};
 use crate::mesh::topology::Topology;
 use crate::mesh::{Index, Wedge};
 use crate::ops::subdivide::subdivide;
@@ -103,13 +103,8 @@ fn sphere_stays_closed_manifold_and_unflipped() {
         assert_eq!(c.non_manifold_edges, 0);
         assert_eq!(c.non_manifold_vertices, 0);
         assert_eq!(c.euler_characteristic, before.euler_characteristic);
+        assert_faces_outward(&out);
         for t in 0..out.triangles.len() {
-            let p = out.triangle_positions(t);
-            let centre = (p[0] + p[1] + p[2]) / 3.0;
-            assert!(
-                out.triangle_cross(t).dot(centre) > 0.0,
-                "flipped triangle {t}"
-            );
             assert!(out.triangle_area(t) > 1e-9);
         }
         // Vertices stay near the sphere.
@@ -329,13 +324,7 @@ fn halves_on_a_sphere_stitch_and_reach_the_target() {
     // Every triangle still faces outwards. (Not the audit's flip count: `subdivide` leaves
     // origins that index the sphere before it was subdivided, which the audit, given the
     // subdivided mesh, reads as its own triangles.)
-    for t in 0..out.triangles.len() {
-        let [a, b, c] = out.triangle_positions(t);
-        assert!(
-            (b - a).cross(c - a).dot(a + b + c) > 0.0,
-            "triangle {t} faces inwards"
-        );
-    }
+    assert_faces_outward(&out);
 }
 
 #[test]

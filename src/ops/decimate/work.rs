@@ -1364,14 +1364,13 @@ fn dense_system<'s, const M: usize>(
     sc.dense.clear();
     for g in &sc.groups {
         let mut q = Quadric::<M>::default();
-        (q.g, q.delta, q.alpha) = (g.q.g, g.q.delta, g.q.alpha);
-        q.p = red.m;
-        q.beta = red.r;
+        q.attr = g.q;
+        q.pos.m = red.m;
+        q.pos.r = red.r;
         sc.dense.push(q);
     }
     for q in sc.dense.iter_mut().skip(1) {
-        q.p = [0.0; 6];
-        q.beta = [0.0; 3];
+        q.pos = Reduced::default();
     }
     &mut sc.dense
 }

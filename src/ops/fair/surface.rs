@@ -373,11 +373,16 @@ struct Sided {
     side: f64,
 }
 
+/// Vertex `v`'s [`Sided`], its ring gathered into `buf`.
 fn sided(positions: &[DVec3], nb: &Neighbourhood, v: usize, buf: &mut Vec<DVec3>) -> Sided {
     gather(positions, nb.ring(v), buf);
-    let a = positions[v];
-    let c = curvature(a, buf);
-    let side = side(a, buf, c.vector);
+    sided_at(positions[v], buf)
+}
+
+/// The [`Sided`] of a vertex at `a` whose ring is at `ring`.
+fn sided_at(a: DVec3, ring: &[DVec3]) -> Sided {
+    let c = curvature(a, ring);
+    let side = side(a, ring, c.vector);
     Sided { c, side }
 }
 
@@ -437,47 +442,15 @@ fn mean_neighbour_curvature(
     if count == 0 { 0.0 } else { sum / count as f64 }
 }
 
-/// One curvature iteration in the thesis' order (§3.5.1): vertices one after another in
-/// index order, every quantity from the current positions (the neighbours' curvature
-/// included, docs/fairing.md reading F2: the literal reading), the new position written back at
-/// once.
-pub fn thesis_curvature_sweep(
+/// One iteration in the thesis' order (§3.5.1): the movable vertices one after another in
+/// index order, each moved (guarded) at once to `target(positions, v, ring)`, where `ring`
+/// holds its neighbours' current positions; `None` leaves it where it is. Later vertices
+/// so see the moves of earlier ones.
+fn thesis_sweep(
     positions: &mut [DVec3],
     it: &Interior,
-    lambda: f64,
     guards: &mut GuardCounts,
-) -> Sweep {
-    let mut buf = Vec::new();
-    let mut nbuf = Vec::new();
-    let mut rbuf = Vec::new();
-    let mut moved = Moved::default();
-    for v in 0..positions.len() {
-        if !it.movable[v] {
-            continue;
-        }
-        let own = sided(positions, it.nb, v, &mut buf);
-        let ring = it.nb.ring(v);
-        let hbar = mean_neighbour_curvature(own.side, ring, it.nb.orientations(v), |j| {
-            let s = sided(positions, it.nb, j, &mut nbuf);
-            s.side * s.c.magnitude
-        });
-        let a = positions[v];
-        let Some(candidate) = curvature_target(a, &own, hbar, lambda, it.eps) else {
-            continue;
-        };
-        gather(positions, ring, &mut buf);
-        gather_references(it, v, &mut rbuf);
-        moved.guarded(positions, v, a, candidate, &buf, &rbuf, guards);
-    }
-    moved.sweep(it)
-}
-
-/// One non-uniformity iteration in the thesis' order (§3.7, eq. 3.37 with β = λ_u).
-pub fn thesis_nonuniformity_sweep(
-    positions: &mut [DVec3],
-    it: &Interior,
-    lambda_u: f64,
-    guards: &mut GuardCounts,
+    mut target: impl FnMut(&[DVec3], usize, &[DVec3]) -> Option<DVec3>,
 ) -> Sweep {
     let mut buf = Vec::new();
     let mut rbuf = Vec::new();
@@ -487,12 +460,49 @@ pub fn thesis_nonuniformity_sweep(
             continue;
         }
         gather(positions, it.nb.ring(v), &mut buf);
+        let Some(candidate) = target(positions, v, &buf) else {
+            continue;
+        };
         gather_references(it, v, &mut rbuf);
         let a = positions[v];
-        let candidate = it.on_input_surface(v, a + lambda_u * nonuniformity(a, &buf));
         moved.guarded(positions, v, a, candidate, &buf, &rbuf, guards);
     }
     moved.sweep(it)
+}
+
+/// One curvature iteration in the thesis' order ([`thesis_sweep`]), every quantity from
+/// the current positions (the neighbours' curvature included, docs/fairing.md reading F2:
+/// the literal reading).
+pub fn thesis_curvature_sweep(
+    positions: &mut [DVec3],
+    it: &Interior,
+    lambda: f64,
+    guards: &mut GuardCounts,
+) -> Sweep {
+    let mut nbuf = Vec::new();
+    thesis_sweep(positions, it, guards, |positions, v, ring| {
+        let a = positions[v];
+        let own = sided_at(a, ring);
+        let hbar = mean_neighbour_curvature(own.side, it.nb.ring(v), it.nb.orientations(v), |j| {
+            let s = sided(positions, it.nb, j, &mut nbuf);
+            s.side * s.c.magnitude
+        });
+        curvature_target(a, &own, hbar, lambda, it.eps)
+    })
+}
+
+/// One non-uniformity iteration in the thesis' order ([`thesis_sweep`]; §3.7, eq. 3.37
+/// with β = λ_u).
+pub fn thesis_nonuniformity_sweep(
+    positions: &mut [DVec3],
+    it: &Interior,
+    lambda_u: f64,
+    guards: &mut GuardCounts,
+) -> Sweep {
+    thesis_sweep(positions, it, guards, |positions, v, ring| {
+        let a = positions[v];
+        Some(it.on_input_surface(v, a + lambda_u * nonuniformity(a, ring)))
+    })
 }
 
 /// Reusable buffers of the fast sweeps (no allocation per iteration).
@@ -537,26 +547,12 @@ pub fn fast_curvature_sweep(
             *signed = c.side * c.c.magnitude;
         });
     let (curv, signed) = (&scratch.curv, &scratch.signed);
-    scratch.candidate.resize(old.len(), DVec3::ZERO);
-    scratch
-        .candidate
-        .par_iter_mut()
-        .enumerate()
-        .for_each(|(v, out)| {
-            let a = old[v];
-            *out = a;
-            if !it.movable[v] {
-                return;
-            }
-            let own = &curv[v];
-            let hbar =
-                mean_neighbour_curvature(own.side, nb.ring(v), nb.orientations(v), |j| signed[j]);
-            if let Some(c) = curvature_target(a, own, hbar, lambda, it.eps)
-                && c.is_finite()
-            {
-                *out = c;
-            }
-        });
+    fast_candidates(old, it, &mut scratch.candidate, |v, _| {
+        let own = &curv[v];
+        let hbar =
+            mean_neighbour_curvature(own.side, nb.ring(v), nb.orientations(v), |j| signed[j]);
+        curvature_target(old[v], own, hbar, lambda, it.eps)
+    });
     commit_parallel(positions, it, guards, scratch)
 }
 
@@ -568,25 +564,37 @@ pub fn fast_nonuniformity_sweep(
     guards: &mut GuardCounts,
     scratch: &mut FastScratch,
 ) -> Sweep {
-    let nb = it.nb;
     let old: &[DVec3] = positions;
-    scratch.candidate.resize(old.len(), DVec3::ZERO);
-    scratch
-        .candidate
+    fast_candidates(old, it, &mut scratch.candidate, |v, buf| {
+        gather(old, it.nb.ring(v), buf);
+        let a = old[v];
+        Some(it.on_input_surface(v, a + lambda_u * nonuniformity(a, buf)))
+    });
+    commit_parallel(positions, it, guards, scratch)
+}
+
+/// The candidate positions of a fast (Jacobi) iteration, in parallel, all from `old`: a
+/// movable vertex `v` goes to `target(v, buf)` (`buf` a scratch vector of the thread) when
+/// that is some finite position; every other vertex stays.
+fn fast_candidates(
+    old: &[DVec3],
+    it: &Interior,
+    candidate: &mut Vec<DVec3>,
+    target: impl Fn(usize, &mut Vec<DVec3>) -> Option<DVec3> + Sync,
+) {
+    candidate.resize(old.len(), DVec3::ZERO);
+    candidate
         .par_iter_mut()
         .enumerate()
         .for_each_init(Vec::new, |buf, (v, out)| {
-            let a = old[v];
-            *out = a;
-            if it.movable[v] {
-                gather(old, nb.ring(v), buf);
-                let c = it.on_input_surface(v, a + lambda_u * nonuniformity(a, buf));
-                if c.is_finite() {
-                    *out = c;
-                }
+            *out = old[v];
+            if it.movable[v]
+                && let Some(c) = target(v, buf)
+                && c.is_finite()
+            {
+                *out = c;
             }
         });
-    commit_parallel(positions, it, guards, scratch)
 }
 
 /// Vertices per chunk of the fixed-order parallel reductions.

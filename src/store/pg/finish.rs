@@ -3,9 +3,11 @@
 //! that lock is held, in one transaction.
 
 use super::{ConnInfo, DbError, is_retryable};
+use crate::store::attempt::{
+    AttemptEnd, AttemptRecord, AttemptWriter, FailurePlan, record_done, record_end,
+};
 use crate::store::{
-    ClaimedJob, FailureKind, FinalState, Finish, MAX_ERROR_BYTES, RetryPolicy, StoreError,
-    backoff_ms, cut, failure_disposition, now_ms,
+    ClaimedJob, FailureKind, FinalState, Finish, JobDone, RetryPolicy, StoreError, now_ms,
 };
 use postgres::{Client, NoTls, Transaction};
 use std::sync::Mutex;
@@ -72,160 +74,111 @@ pub(super) fn finish_in(
             _ => FinalState::Failed,
         });
     }
-    let now = now_ms();
-    match outcome {
-        Finish::Done { .. } => record_done(tx, job, outcome, now, wall_ms),
-        Finish::Failed {
-            kind,
-            message,
-            transient,
-        } => record_failure(tx, job, (*kind, message, *transient), retry, now, wall_ms),
-        Finish::Interrupted { reason } => {
-            tx.execute(
-                "UPDATE job SET state='queued', attempts=greatest(attempts-1, 0), run_after=$2,
-                    updated_at=$2, lease_owner=NULL, lease_until=NULL, attempt_token=NULL WHERE id=$1",
-                &[&job.id, &now],
-            )?;
-            let kind = Some(FailureKind::Interrupted);
-            close_attempt(
-                tx,
-                job.attempt_id,
-                now,
-                "interrupted",
-                kind,
-                Some(reason),
-                wall_ms,
-            )?;
-            Ok(FinalState::Requeued)
-        }
-    }
+    let end = AttemptEnd {
+        job,
+        now: now_ms(),
+        wall_ms,
+    };
+    record_end(tx, &end, outcome, retry)
 }
 
-fn record_done(
-    tx: &mut Transaction<'_>,
-    job: &ClaimedJob,
-    outcome: &Finish,
-    now: i64,
-    wall_ms: f64,
-) -> DbResult<FinalState> {
-    let Finish::Done {
-        output_dir,
-        preview,
-        outputs,
-        report_json,
-        counts,
-        process_ms,
-        steps,
-    } = outcome
-    else {
-        return Ok(FinalState::Failed);
-    };
-    tx.execute(
-        "UPDATE job SET state='done', retryable=0, finished_at=$2, updated_at=$2, lease_owner=NULL,
-            lease_until=NULL, output_dir=$3, error_kind=NULL, error=NULL, in_vertices=$4,
-            in_faces=$5, out_vertices=$6, out_faces=$7, process_ms=$8, report_json=$9, preview=$10
-         WHERE id=$1",
-        &[
-            &job.id,
-            &now,
-            output_dir,
-            &counts.in_vertices,
-            &counts.in_faces,
-            &counts.out_vertices,
-            &counts.out_faces,
-            process_ms,
-            report_json,
-            preview,
-        ],
-    )?;
-    tx.execute("DELETE FROM job_output WHERE job_id=$1", &[&job.id])?;
-    for f in outputs {
-        tx.execute(
-            "INSERT INTO job_output(job_id, path, bytes, sha256) VALUES ($1, $2, $3, $4)
-             ON CONFLICT (job_id, path) DO UPDATE SET bytes=excluded.bytes, sha256=excluded.sha256",
-            &[&job.id, &f.path, &(f.bytes as i64), &f.sha256],
-        )?;
-    }
-    for (i, s) in steps.iter().enumerate() {
-        tx.execute(
-            "INSERT INTO step_timing(attempt_id, idx, kind, wall_ms, vertices_before, vertices_after,
-                faces_before, faces_after, figures_json) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+/// The rows that end an attempt, in PostgreSQL's dialect: as the SQLite store's, and each
+/// also drops the job's lease and fencing token.
+impl AttemptWriter for Transaction<'_> {
+    type Error = DbError;
+
+    fn job_done(&mut self, end: &AttemptEnd<'_>, done: &JobDone) -> DbResult<()> {
+        self.execute(
+            "UPDATE job SET state='done', retryable=0, finished_at=$2, updated_at=$2, lease_owner=NULL,
+                lease_until=NULL, output_dir=$3, error_kind=NULL, error=NULL, in_vertices=$4,
+                in_faces=$5, out_vertices=$6, out_faces=$7, process_ms=$8, report_json=$9, preview=$10
+             WHERE id=$1",
             &[
-                &job.attempt_id,
-                &(i as i64 + 1),
-                &s.kind,
-                &s.wall_ms,
-                &s.vertices_before,
-                &s.vertices_after,
-                &s.faces_before,
-                &s.faces_after,
-                &s.figures_json,
+                &end.job.id,
+                &end.now,
+                &done.output_dir,
+                &done.counts.in_vertices,
+                &done.counts.in_faces,
+                &done.counts.out_vertices,
+                &done.counts.out_faces,
+                &done.process_ms,
+                &done.report_json,
+                &done.preview,
             ],
         )?;
+        self.execute("DELETE FROM job_output WHERE job_id=$1", &[&end.job.id])?;
+        for f in &done.outputs {
+            self.execute(
+                "INSERT INTO job_output(job_id, path, bytes, sha256) VALUES ($1, $2, $3, $4)
+                 ON CONFLICT (job_id, path) DO UPDATE SET bytes=excluded.bytes, sha256=excluded.sha256",
+                &[&end.job.id, &f.path, &(f.bytes as i64), &f.sha256],
+            )?;
+        }
+        for (i, s) in done.steps.iter().enumerate() {
+            self.execute(
+                "INSERT INTO step_timing(attempt_id, idx, kind, wall_ms, vertices_before, vertices_after,
+                    faces_before, faces_after, figures_json) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+                &[
+                    &end.job.attempt_id,
+                    &(i as i64 + 1),
+                    &s.kind,
+                    &s.wall_ms,
+                    &s.vertices_before,
+                    &s.vertices_after,
+                    &s.faces_before,
+                    &s.faces_after,
+                    &s.figures_json,
+                ],
+            )?;
+        }
+        Ok(())
     }
-    close_attempt(tx, job.attempt_id, now, "ok", None, None, wall_ms)?;
-    Ok(FinalState::Done)
-}
 
-/// A failed attempt: failed for good, quarantined, or retried after the back-off (the
-/// same rule as the SQLite store).
-fn record_failure(
-    tx: &mut Transaction<'_>,
-    job: &ClaimedJob,
-    (kind, message, transient): (FailureKind, &str, bool),
-    retry: RetryPolicy,
-    now: i64,
-    wall_ms: f64,
-) -> DbResult<FinalState> {
-    let (state, retryable, outcome, fs) = failure_disposition(transient, job);
-    let run_after = now + backoff_ms(job.attempt, retry.base_secs, retry.max_secs);
-    let message = cut(message, MAX_ERROR_BYTES);
-    tx.execute(
-        "UPDATE job SET state=$2, retryable=$3, run_after=$4, finished_at=$5, updated_at=$5,
-            lease_owner=NULL, lease_until=NULL, error_kind=$6, error=$7 WHERE id=$1",
-        &[
-            &job.id,
-            &state,
-            &retryable,
-            &run_after,
-            &now,
-            &kind.as_str(),
-            &message.as_ref(),
-        ],
-    )?;
-    close_attempt(
-        tx,
-        job.attempt_id,
-        now,
-        outcome,
-        Some(kind),
-        Some(&message),
-        wall_ms,
-    )?;
-    Ok(fs)
-}
+    fn job_failed(
+        &mut self,
+        end: &AttemptEnd<'_>,
+        kind: FailureKind,
+        plan: &FailurePlan<'_>,
+    ) -> DbResult<()> {
+        self.execute(
+            "UPDATE job SET state=$2, retryable=$3, run_after=$4, finished_at=$5, updated_at=$5,
+                lease_owner=NULL, lease_until=NULL, error_kind=$6, error=$7 WHERE id=$1",
+            &[
+                &end.job.id,
+                &plan.state,
+                &plan.retryable,
+                &plan.run_after,
+                &end.now,
+                &kind.as_str(),
+                &plan.message.as_ref(),
+            ],
+        )?;
+        Ok(())
+    }
 
-fn close_attempt(
-    tx: &mut Transaction<'_>,
-    attempt_id: i64,
-    now: i64,
-    outcome: &str,
-    kind: Option<FailureKind>,
-    message: Option<&str>,
-    wall_ms: f64,
-) -> DbResult<()> {
-    tx.execute(
-        "UPDATE attempt SET finished_at=$2, outcome=$3, error_kind=$4, error=$5, wall_ms=$6 WHERE id=$1",
-        &[
-            &attempt_id,
-            &now,
-            &outcome,
-            &kind.map(FailureKind::as_str),
-            &message,
-            &wall_ms,
-        ],
-    )?;
-    Ok(())
+    fn job_requeued(&mut self, end: &AttemptEnd<'_>) -> DbResult<()> {
+        self.execute(
+            "UPDATE job SET state='queued', attempts=greatest(attempts-1, 0), run_after=$2,
+                updated_at=$2, lease_owner=NULL, lease_until=NULL, attempt_token=NULL WHERE id=$1",
+            &[&end.job.id, &end.now],
+        )?;
+        Ok(())
+    }
+
+    fn close_attempt(&mut self, a: &AttemptRecord<'_>) -> DbResult<()> {
+        self.execute(
+            "UPDATE attempt SET finished_at=$2, outcome=$3, error_kind=$4, error=$5, wall_ms=$6 WHERE id=$1",
+            &[
+                &a.attempt_id,
+                &a.finished_at,
+                &a.outcome,
+                &a.kind.map(FailureKind::as_str),
+                &a.message,
+                &a.wall_ms,
+            ],
+        )?;
+        Ok(())
+    }
 }
 
 /// What [`Fence::hold`] did.
@@ -316,9 +269,13 @@ impl Fence {
         let publish = publish.take().expect("runs once");
         let result = publish();
         let recorded = match &result {
-            Ok(finish @ Finish::Done { .. }) => {
-                record_done(&mut tx, job, finish, now_ms(), wall_ms())
-                    .and_then(|_| Ok(tx.commit()?))
+            Ok(Finish::Done(done)) => {
+                let end = AttemptEnd {
+                    job,
+                    now: now_ms(),
+                    wall_ms: wall_ms(),
+                };
+                record_done(&mut tx, &end, done).and_then(|_| Ok(tx.commit()?))
             }
             _ => Ok(tx.commit()?),
         };
