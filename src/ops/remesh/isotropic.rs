@@ -358,12 +358,6 @@ pub fn project(c: &mut Corners, input: &Input) {
 }
 
 fn projected(c: &Corners, input: &Input, v: u32, sc: &mut Scratch) -> (DVec3, u32, u32) {
-    let Input {
-        mesh,
-        topo,
-        bvh,
-        lines,
-    } = *input;
     let i = v as usize;
     let (p, seg, tri) = (c.pos[i], c.vseg[i], c.vtri[i]);
     if c.vertex_dead[i] || c.locked[i] {
@@ -372,11 +366,11 @@ fn projected(c: &Corners, input: &Input, v: u32, sc: &mut Scratch) -> (DVec3, u3
     let (q, seg, tri) = match c.kind[i] {
         VKind::Corner => return (p, seg, tri),
         VKind::Line if seg != NIL => {
-            let (q, s) = lines.project(p, seg);
+            let (q, s) = input.lines.project(p, seg);
             (q, s, tri)
         }
         VKind::Line => return (p, seg, tri),
-        VKind::Free => match walk::walk_or_search(mesh, topo, bvh, tri, p, |_| true) {
+        VKind::Free => match input.closest_near(p, tri) {
             Some(foot) => (foot.point, seg, foot.triangle),
             None => return (p, seg, tri),
         },
@@ -394,6 +388,13 @@ pub struct Input<'a> {
     pub topo: &'a Topology,
     pub bvh: &'a TriangleBvh<'a>,
     pub lines: &'a Lines,
+}
+
+impl Input<'_> {
+    /// The closest point of the input to `p` near input triangle `tri` (see [`project`]).
+    fn closest_near(&self, p: DVec3, tri: u32) -> Option<walk::Foot> {
+        walk::walk_or_search(self.mesh, self.topo, self.bvh, tri, p, |_| true)
+    }
 }
 
 /// Runs `iterations` rounds towards the edge lengths of `sizing`, then, with `fit`, fits
