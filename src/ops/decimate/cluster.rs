@@ -92,6 +92,9 @@ impl VoSums {
 /// chosen original vertex (vo).
 type CellPlan<const M: usize> = (f64, [f64; 3], [f64; M], u32);
 
+/// Cells by cost, cheapest first: (the cost's bits, the cell).
+type CostHeap = BinaryHeap<Reverse<(u64, u32)>>;
+
 struct Cluster<'a, const M: usize> {
     mesh: &'a Mesh,
     params: &'a DecimateParams,
@@ -417,16 +420,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
         self.rep_attr = vec![[0.0; M]; nn];
         self.rep_vertex = vec![NIL; nn];
         let mut collapsed = vec![false; nn];
-        // Leaves holding several (coincident) points are collapsed from the start.
-        for id in 0..nn {
-            let node = &self.nodes[id];
-            if node.leaf && node.hi - node.lo > 1 {
-                let (_, p, a, r) = self.evaluate(id);
-                (self.rep_pos[id], self.rep_attr[id], self.rep_vertex[id]) = (p, a, r);
-                collapsed[id] = true;
-                self.collapse(id);
-            }
-        }
+        self.collapse_coincident_leaves(&mut collapsed);
         let diag = self.mesh.bounding_box_diagonal();
         let (lo, hi) = self
             .mesh
@@ -435,19 +429,7 @@ impl<'a, const M: usize> Cluster<'a, M> {
         let to_diag = (hi - lo).max_element() / diag.max(f64::MIN_POSITIVE);
         let max_error = self.params.max_error.map_or(f64::INFINITY, |e| e / to_diag);
         let target = self.params.target_faces.unwrap_or(0);
-        let frontier: Vec<usize> = (0..nn)
-            .filter(|&id| !self.nodes[id].leaf && self.nodes[id].inner_children == 0)
-            .collect();
-        let mut plans: Vec<Option<CellPlan<M>>> = (0..nn).map(|_| None).collect();
-        let mut heap = BinaryHeap::new();
-        let evaluated: Vec<(usize, CellPlan<M>)> = frontier
-            .par_iter()
-            .map(|&id| (id, self.evaluate(id)))
-            .collect();
-        for (id, plan) in evaluated {
-            heap.push(Reverse(((plan.0.max(0.0) + 0.0).to_bits(), id as u32)));
-            plans[id] = Some(plan);
-        }
+        let (mut plans, mut heap) = self.frontier_plans();
         let mut report = DecimateReport {
             stopped_by: super::StopReason::Target,
             ..Default::default()
@@ -492,8 +474,57 @@ impl<'a, const M: usize> Cluster<'a, M> {
                 }
             }
         }
-        // The leaf of every vertex: the highest collapsed ancestor, else its own leaf.
-        // Nodes were created parents-first, so a pass in creation order suffices.
+        self.assign_cells(&collapsed);
+        report.clusters = Some({
+            let mut leaves: Vec<u32> = self.leaf_of.clone();
+            leaves.sort_unstable();
+            leaves.dedup();
+            leaves.len()
+        });
+        report.error_reached = error_reached * to_diag;
+        let out = self.into_mesh(&collapsed, lo, (hi - lo).max_element());
+        (out, report)
+    }
+
+    /// Leaves holding several (coincident) points are collapsed from the start.
+    fn collapse_coincident_leaves(&mut self, collapsed: &mut [bool]) {
+        for id in 0..self.nodes.len() {
+            let node = &self.nodes[id];
+            if node.leaf && node.hi - node.lo > 1 {
+                let (_, p, a, r) = self.evaluate(id);
+                (self.rep_pos[id], self.rep_attr[id], self.rep_vertex[id]) = (p, a, r);
+                collapsed[id] = true;
+                self.collapse(id);
+            }
+        }
+    }
+
+    /// The plans of the cells whose children are all leaves (the first candidates, evaluated
+    /// in parallel), and the heap of their costs.
+    fn frontier_plans(&self) -> (Vec<Option<CellPlan<M>>>, CostHeap) {
+        let nn = self.nodes.len();
+        let frontier: Vec<usize> = (0..nn)
+            .filter(|&id| !self.nodes[id].leaf && self.nodes[id].inner_children == 0)
+            .collect();
+        let mut plans: Vec<Option<CellPlan<M>>> = (0..nn).map(|_| None).collect();
+        let mut heap = BinaryHeap::new();
+        let evaluated: Vec<(usize, CellPlan<M>)> = frontier
+            .par_iter()
+            .map(|&id| (id, self.evaluate(id)))
+            .collect();
+        for (id, plan) in evaluated {
+            heap.push(Reverse(((plan.0.max(0.0) + 0.0).to_bits(), id as u32)));
+            plans[id] = Some(plan);
+        }
+        (plans, heap)
+    }
+
+    /// The cell of every vertex (`leaf_of`): the highest collapsed ancestor of its leaf, else
+    /// the leaf itself. Nodes were created parents-first, so a pass in creation order
+    /// suffices; collapsed nodes that are not leaves of the creation tree hand their cell
+    /// down to their subtree's vertices through `top`.
+    fn assign_cells(&mut self, collapsed: &[bool]) {
+        let nn = self.nodes.len();
         let mut top: Vec<u32> = vec![NIL; nn];
         for id in 0..nn {
             let parent = self.nodes[id].parent;
@@ -516,79 +547,16 @@ impl<'a, const M: usize> Cluster<'a, M> {
                 }
             }
         }
-        // Collapsed leaves that are not leaves of the creation tree: their subtree's vertices
-        // got the collapsed ancestor above, since `top` propagates down.
-        report.clusters = Some({
-            let mut leaves: Vec<u32> = self.leaf_of.clone();
-            leaves.sort_unstable();
-            leaves.dedup();
-            leaves.len()
-        });
-        report.error_reached = error_reached * to_diag;
-        let out = self.into_mesh(&collapsed, lo, (hi - lo).max_element());
-        (out, report)
     }
 
     fn into_mesh(self, collapsed: &[bool], lo: DVec3, extent: f64) -> Mesh {
         let mesh = self.mesh;
         let keep = self.params.method == Method::ClusterKeep;
         let mut out = mesh.without_triangles();
-        // New vertex (and wedge) per collapsed cell of `cluster`.
-        let nn = self.nodes.len();
-        let mut cell_vertex = vec![NIL; nn];
-        let mut cell_wedge = vec![NIL; nn];
-        let has_uv = !mesh.texcoords.is_empty() && M >= 2;
-        let has_n = !mesh.normals.is_empty() && M >= if has_uv { 5 } else { 3 };
-        let mut is_cell = vec![false; nn];
-        for &c in &self.leaf_of {
-            if c != NIL {
-                is_cell[c as usize] = true;
-            }
-        }
-        if !keep {
-            for id in 0..nn {
-                if !collapsed[id] || !is_cell[id] {
-                    continue;
-                }
-                let p = DVec3::from_array(self.rep_pos[id]) * extent + lo;
-                out.positions.push(p);
-                if !out.colors.is_empty() {
-                    let v = self.order[self.nodes[id].lo as usize] as usize;
-                    out.colors.push(mesh.colors[v]);
-                }
-                cell_vertex[id] = (out.positions.len() - 1) as u32;
-                let a = self.rep_attr[id];
-                let texcoord = has_uv.then(|| {
-                    out.texcoords.push(DVec2::new(a[0], a[1]));
-                    (out.texcoords.len() - 1) as Index
-                });
-                let k = if has_uv { 2 } else { 0 };
-                let normal = has_n.then(|| {
-                    let n = DVec3::new(a[k], a[k + 1], a[k + 2])
-                        .try_normalize()
-                        .unwrap_or(DVec3::Z);
-                    out.normals.push(n);
-                    (out.normals.len() - 1) as Index
-                });
-                out.wedges.push(Wedge {
-                    vertex: cell_vertex[id],
-                    texcoord,
-                    normal,
-                });
-                cell_wedge[id] = (out.wedges.len() - 1) as u32;
-            }
-        }
-        // Wedges of each representative vertex (vo), for choosing a corner's wedge.
-        let wedges_of = |v: u32| -> Vec<Index> {
-            let mut ws: Vec<Index> = self.vt
-                [self.vt_off[v as usize] as usize..self.vt_off[v as usize + 1] as usize]
-                .iter()
-                .flat_map(|&t| mesh.triangles[t as usize])
-                .filter(|&w| mesh.wedges[w as usize].vertex == v)
-                .collect();
-            ws.sort_unstable();
-            ws.dedup();
-            ws
+        let cell_wedge = if keep {
+            Vec::new()
+        } else {
+            self.add_cell_vertices(&mut out, collapsed, lo, extent)
         };
         let mut seen: HashSet<[u32; 3]> = HashSet::new();
         for t in 0..mesh.triangles.len() {
@@ -610,20 +578,9 @@ impl<'a, const M: usize> Cluster<'a, M> {
                 }
                 if keep {
                     let r = self.rep_vertex[cell];
-                    if r == vs[k] {
-                        continue;
+                    if r != vs[k] {
+                        tri[k] = self.nearest_wedge(r, tri[k]);
                     }
-                    let own = mesh.wedge_texcoord(tri[k]).unwrap_or_default();
-                    let ws = wedges_of(r);
-                    tri[k] = ws
-                        .iter()
-                        .copied()
-                        .min_by(|&a, &b| {
-                            let da = mesh.wedge_texcoord(a).unwrap_or_default().distance(own);
-                            let db = mesh.wedge_texcoord(b).unwrap_or_default().distance(own);
-                            da.total_cmp(&db).then(a.cmp(&b))
-                        })
-                        .unwrap_or(tri[k]);
                 } else {
                     tri[k] = cell_wedge[cell];
                 }
@@ -636,6 +593,85 @@ impl<'a, const M: usize> Cluster<'a, M> {
         }
         out.compact();
         out
+    }
+
+    /// One new vertex and wedge per collapsed cell in use, at its representative position
+    /// (scaled back by `lo` and `extent`) with its representative attributes; returns each
+    /// cell's wedge (`NIL` for the others).
+    fn add_cell_vertices(
+        &self,
+        out: &mut Mesh,
+        collapsed: &[bool],
+        lo: DVec3,
+        extent: f64,
+    ) -> Vec<u32> {
+        let mesh = self.mesh;
+        let nn = self.nodes.len();
+        let has_uv = !mesh.texcoords.is_empty() && M >= 2;
+        let has_n = !mesh.normals.is_empty() && M >= if has_uv { 5 } else { 3 };
+        let mut is_cell = vec![false; nn];
+        for &c in &self.leaf_of {
+            if c != NIL {
+                is_cell[c as usize] = true;
+            }
+        }
+        let mut cell_wedge = vec![NIL; nn];
+        for id in 0..nn {
+            if !collapsed[id] || !is_cell[id] {
+                continue;
+            }
+            let p = DVec3::from_array(self.rep_pos[id]) * extent + lo;
+            out.positions.push(p);
+            if !out.colors.is_empty() {
+                let v = self.order[self.nodes[id].lo as usize] as usize;
+                out.colors.push(mesh.colors[v]);
+            }
+            let vertex = (out.positions.len() - 1) as u32;
+            let a = self.rep_attr[id];
+            let texcoord = has_uv.then(|| {
+                out.texcoords.push(DVec2::new(a[0], a[1]));
+                (out.texcoords.len() - 1) as Index
+            });
+            let k = if has_uv { 2 } else { 0 };
+            let normal = has_n.then(|| {
+                let n = DVec3::new(a[k], a[k + 1], a[k + 2])
+                    .try_normalize()
+                    .unwrap_or(DVec3::Z);
+                out.normals.push(n);
+                (out.normals.len() - 1) as Index
+            });
+            out.wedges.push(Wedge {
+                vertex,
+                texcoord,
+                normal,
+            });
+            cell_wedge[id] = (out.wedges.len() - 1) as u32;
+        }
+        cell_wedge
+    }
+
+    /// `cluster-keep`: the wedge of representative vertex `r` whose texture coordinate is
+    /// nearest that of wedge `own` (the corner's own), lowest index on a tie; `own` when `r`
+    /// has none.
+    fn nearest_wedge(&self, r: u32, own: Index) -> Index {
+        let mesh = self.mesh;
+        let own_uv = mesh.wedge_texcoord(own).unwrap_or_default();
+        let mut ws: Vec<Index> = self.vt
+            [self.vt_off[r as usize] as usize..self.vt_off[r as usize + 1] as usize]
+            .iter()
+            .flat_map(|&t| mesh.triangles[t as usize])
+            .filter(|&w| mesh.wedges[w as usize].vertex == r)
+            .collect();
+        ws.sort_unstable();
+        ws.dedup();
+        ws.iter()
+            .copied()
+            .min_by(|&a, &b| {
+                let da = mesh.wedge_texcoord(a).unwrap_or_default().distance(own_uv);
+                let db = mesh.wedge_texcoord(b).unwrap_or_default().distance(own_uv);
+                da.total_cmp(&db).then(a.cmp(&b))
+            })
+            .unwrap_or(own)
     }
 }
 

@@ -155,6 +155,57 @@ fn vertices<const M: usize>(work: &Work<M>, t: usize) -> [u32; 3] {
     work.tv[t]
 }
 
+/// Every triangle's first key, evaluated in parallel, with `aux` filled in the same pass, in
+/// place, so that no second array of keys is needed (peak memory).
+fn initial_heap<const M: usize, O: CollapseOperator>(
+    work: &Work<M>,
+    op: &O,
+    aux: &mut [u8],
+) -> IndexedHeap {
+    IndexedHeap::build(work.tris.len(), |entries| {
+        entries
+            .par_iter_mut()
+            .zip(aux.par_iter_mut())
+            .enumerate()
+            .for_each(|(t, (e, a))| {
+                let k = match op.candidate(work, t, a) {
+                    Ok(k) => key(k),
+                    // Refused because two fixed vertices would merge: that stays so until
+                    // the triangle is deleted (fixed vertices never go away), so it is
+                    // never re-keyed.
+                    Err(Refusal::Locked) => {
+                        *a |= FROZEN;
+                        u64::MAX
+                    }
+                    Err(_) => u64::MAX,
+                };
+                *e = (k, t as u32);
+            });
+    })
+}
+
+/// The fan's new priorities into the heap: a refused triangle leaves it (for good, FROZEN,
+/// when two fixed vertices would merge).
+fn set_keys(
+    heap: &mut IndexedHeap,
+    aux: &mut [u8],
+    fan: &[(u32, Result<f64, Refusal>)],
+    stats: &mut LoopStats,
+) {
+    for &(u, r) in fan {
+        match r {
+            Ok(cost) => heap.set(u, key(cost)),
+            Err(cause) => {
+                heap.remove(u);
+                if cause == Refusal::Locked {
+                    aux[u as usize] |= FROZEN;
+                }
+                stats.refused.count(cause);
+            }
+        }
+    }
+}
+
 /// The priority of each triangle around the vertex a collapse left (the fan in
 /// `sc.corners`), skipping those refused for good.
 fn fan_candidates<const M: usize, O: CollapseOperator>(
@@ -226,31 +277,9 @@ pub fn run<const M: usize, O: CollapseOperator>(
     let nt = work.tris.len();
     let (t0, cpu0) = (std::time::Instant::now(), super::cpu_seconds());
     // Per triangle one byte: its cheapest side for edge collapse (see `fan_candidates`;
-    // 3 = unknown) and the FROZEN bit. Filled in the same parallel pass as the keys, in
-    // place, so that no second array of keys is needed (peak memory).
+    // 3 = unknown) and the FROZEN bit.
     let mut aux = vec![3u8; nt];
-    let w: &Work<M> = work;
-    let mut heap = IndexedHeap::build(nt, |entries| {
-        entries
-            .par_iter_mut()
-            .zip(aux.par_iter_mut())
-            .enumerate()
-            .for_each(|(t, (e, a))| {
-                let r = op.candidate(w, t, a);
-                let k = match r {
-                    Ok(k) => key(k),
-                    // Refused because two fixed vertices would merge: that stays so until
-                    // the triangle is deleted (fixed vertices never go away), so it is
-                    // never re-keyed.
-                    Err(Refusal::Locked) => {
-                        *a |= FROZEN;
-                        u64::MAX
-                    }
-                    Err(_) => u64::MAX,
-                };
-                *e = (k, t as u32);
-            });
-    });
+    let mut heap = initial_heap(work, op, &mut aux);
     stats.evaluations += nt;
     let mut sc = Scratch::<M>::default();
     let mut memo = Vec::with_capacity(16);
@@ -277,18 +306,7 @@ pub fn run<const M: usize, O: CollapseOperator>(
                 }
                 fan_candidates(work, op, &sc, &heap, &mut aux, &mut memo, &mut fan);
                 stats.evaluations += fan.len();
-                for &(u, r) in &fan {
-                    match r {
-                        Ok(cost) => heap.set(u, key(cost)),
-                        Err(cause) => {
-                            heap.remove(u);
-                            if cause == Refusal::Locked {
-                                aux[u as usize] |= FROZEN;
-                            }
-                            stats.refused.count(cause);
-                        }
-                    }
-                }
+                set_keys(&mut heap, &mut aux, &fan, &mut stats);
             }
             // Refused: out of the heap until a collapse next to it re-keys it.
             Err(cause) => stats.refused.count(cause),
