@@ -6,38 +6,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
+mod hostile_support;
 
 use common::{DATA, scan_folder as scan};
-const RECIPE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/config/recipes/normals-only.toml"
-);
-
-fn scanmill(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_scanmill"))
-        .args(args)
-        .env("SCANMILL_LOG", "error")
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn process(input: &Path, out: &Path) -> (i32, String) {
-    let (code, _, stderr) = scanmill(&[
-        "process",
-        input.to_str().unwrap(),
-        "--recipe",
-        RECIPE,
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    (code, stderr)
-}
-
+use hostile_support::{RECIPE, Run, process, run};
 fn entries(dir: &Path) -> Vec<PathBuf> {
     match std::fs::read_dir(dir) {
         Ok(rd) => rd.map(|e| e.unwrap().path()).collect(),
@@ -51,7 +23,7 @@ fn textured_obj_is_processed_with_its_texture_and_report() {
     let out = tmp.path().join("out");
     let report = tmp.path().join("report.json");
     let input = format!("{DATA}/textured/james_face_stereo_capture/james.obj");
-    let (code, _, stderr) = scanmill(&[
+    let Run { code, stderr, .. } = run(&[
         "process",
         &input,
         "--recipe",
@@ -61,7 +33,7 @@ fn textured_obj_is_processed_with_its_texture_and_report() {
         "--report",
         report.to_str().unwrap(),
     ]);
-    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(code, Some(0), "{stderr}");
     let mut names: Vec<String> = entries(&out)
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
@@ -79,9 +51,13 @@ fn textured_obj_is_processed_with_its_texture_and_report() {
     assert_eq!(json["recipe"]["hash"].as_str().unwrap().len(), 64);
     assert_eq!(json["input"]["content_hash"].as_str().unwrap().len(), 64);
     // The result is a valid scan again, now with one normal per vertex.
-    let (code, stdout, stderr) =
-        scanmill(&["inspect", "--json", out.join("james.obj").to_str().unwrap()]);
-    assert_eq!(code, 0, "{stderr}");
+    let Run {
+        code,
+        stdout,
+        stderr,
+        ..
+    } = run(&["inspect", "--json", out.join("james.obj").to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{stderr}");
     let summary: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(summary["triangles"], 12228);
     assert_eq!(summary["texture_seam_edges"], 281);
@@ -96,7 +72,7 @@ fn texture_given_for_an_obj_without_mtl() {
     let report = tmp.path().join("report.json");
     let input = format!("{DATA}/textured/facefuns_di3d_face/example.obj");
     let texture = format!("{DATA}/textured/facefuns_di3d_face/example.png");
-    let (code, _, stderr) = scanmill(&[
+    let Run { code, stderr, .. } = run(&[
         "process",
         &input,
         "--texture",
@@ -108,7 +84,7 @@ fn texture_given_for_an_obj_without_mtl() {
         "--report",
         report.to_str().unwrap(),
     ]);
-    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(code, Some(0), "{stderr}");
     for name in ["example.obj", "example.mtl", "example.png"] {
         assert!(out.join(name).is_file(), "{name}: {:?}", entries(&out));
     }
@@ -118,7 +94,7 @@ fn texture_given_for_an_obj_without_mtl() {
 
     // A texture that is not there: a clear error, exit 65, nothing in --out.
     let out = tmp.path().join("out2");
-    let (code, _, stderr) = scanmill(&[
+    let Run { code, stderr, .. } = run(&[
         "process",
         &input,
         "--texture",
@@ -128,7 +104,7 @@ fn texture_given_for_an_obj_without_mtl() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(code, 65, "{stderr}");
+    assert_eq!(code, Some(65), "{stderr}");
     assert!(stderr.contains("face.png"), "{stderr}");
     assert!(entries(&out).is_empty());
 }
@@ -137,8 +113,8 @@ fn texture_given_for_an_obj_without_mtl() {
 fn ply_input_is_processed() {
     let tmp = tempfile::tempdir().unwrap();
     let input = Path::new(DATA).join("untextured/stanford_bunny/bun_zipper_res4.ply");
-    let (code, stderr) = process(&input, tmp.path());
-    assert_eq!(code, 0, "{stderr}");
+    let Run { code, stderr, .. } = process(&input, tmp.path());
+    assert_eq!(code, Some(0), "{stderr}");
     assert!(tmp.path().join("bun_zipper_res4.obj").is_file());
 }
 
@@ -149,8 +125,8 @@ fn ply_input_is_processed() {
 fn a_recipe_without_decimate_keeps_the_vertex_order() {
     let tmp = tempfile::tempdir().unwrap();
     let input = Path::new(DATA).join("untextured/stanford_bunny/bun_zipper_res4.ply");
-    let (code, stderr) = process(&input, tmp.path());
-    assert_eq!(code, 0, "{stderr}");
+    let Run { code, stderr, .. } = process(&input, tmp.path());
+    assert_eq!(code, Some(0), "{stderr}");
     let options = scanmill::mesh::LoadOptions::default();
     let (before, _) = scanmill::mesh::load(&input, &options).unwrap();
     let output = tmp.path().join("bun_zipper_res4.obj");
@@ -288,8 +264,8 @@ fn bad_inputs_fail_clearly_and_leave_nothing_in_out() {
             first
         };
         let out = tmp.path().join("out");
-        let (code, stderr) = process(&input, &out);
-        assert_eq!(code, expected_code, "{what}: {stderr}");
+        let Run { code, stderr, .. } = process(&input, &out);
+        assert_eq!(code, Some(expected_code), "{what}: {stderr}");
         let line = stderr.trim_end();
         assert_eq!(line.lines().count(), 1, "{what}: not one line: {stderr}");
         assert!(line.starts_with("scanmill: error: "), "{what}: {line}");
@@ -316,7 +292,7 @@ fn recipe_errors_name_line_and_choices() {
     .unwrap();
     let input = format!("{DATA}/untextured/stanford_bunny/bun_zipper_res4.ply");
     let out = tmp.path().join("out");
-    let (code, _, stderr) = scanmill(&[
+    let Run { code, stderr, .. } = run(&[
         "process",
         &input,
         "--recipe",
@@ -324,7 +300,7 @@ fn recipe_errors_name_line_and_choices() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(code, 78, "{stderr}");
+    assert_eq!(code, Some(78), "{stderr}");
     assert!(
         stderr.contains("r.toml") && stderr.contains("line 5") && stderr.contains("normals"),
         "{stderr}"
