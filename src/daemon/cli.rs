@@ -32,6 +32,8 @@ pub enum ServiceCommand {
     },
     /// List jobs from the audit log.
     History {
+        /// The daemon's configuration, which names its database (default: $SCANMILL_CONFIG,
+        /// else config/scanmill.toml, else built-in).
         #[arg(long)]
         config: Option<PathBuf>,
         /// A PostgreSQL store to read instead of the configuration's (`postgres://…`).
@@ -60,6 +62,8 @@ pub enum ServiceCommand {
     /// Show everything recorded about one job (inputs, recipe, attempts, step timings, metrics, outputs), as JSON.
     Show {
         job: i64,
+        /// The daemon's configuration, which names its database (default: $SCANMILL_CONFIG,
+        /// else config/scanmill.toml, else built-in).
         #[arg(long)]
         config: Option<PathBuf>,
         /// A PostgreSQL store to read instead of the configuration's (`postgres://…`).
@@ -69,6 +73,8 @@ pub enum ServiceCommand {
     /// Put a job back in the queue (a fresh attempt count; its output is published again, with a suffix if needed).
     Requeue {
         job: i64,
+        /// The daemon's configuration, which names its database (default: $SCANMILL_CONFIG,
+        /// else config/scanmill.toml, else built-in).
         #[arg(long)]
         config: Option<PathBuf>,
         /// A PostgreSQL store to read instead of the configuration's (`postgres://…`).
@@ -77,6 +83,8 @@ pub enum ServiceCommand {
     },
     /// Check the daemon configuration; exit 78 if it is not valid.
     ValidateConfig {
+        /// The configuration to check (default: $SCANMILL_CONFIG, else config/scanmill.toml,
+        /// else built-in).
         #[arg(long)]
         config: Option<PathBuf>,
     },
@@ -112,6 +120,8 @@ pub enum DbCommand {
     /// Copy the database with SQLite's online backup (safe while the daemon runs), then check the copy.
     Backup {
         file: PathBuf,
+        /// The daemon's configuration, which names its database (default: $SCANMILL_CONFIG,
+        /// else config/scanmill.toml, else built-in).
         #[arg(long)]
         config: Option<PathBuf>,
     },
@@ -121,6 +131,8 @@ pub enum DbCommand {
         /// The PostgreSQL store (`postgres://…`); created and migrated if empty.
         #[arg(long, value_name = "URL")]
         to: String,
+        /// The daemon's configuration, which names its database (default: $SCANMILL_CONFIG,
+        /// else config/scanmill.toml, else built-in).
         #[arg(long)]
         config: Option<PathBuf>,
     },
