@@ -82,12 +82,15 @@ impl<'a> ChartIndex<'a> {
     /// The input triangle of `chart` closest to `p`: walked to from input triangle `hint`
     /// when that is in the chart, searched in the chart's tree otherwise.
     fn closest(&self, chart: u32, p: DVec3, hint: u32) -> Option<u32> {
-        let bvh = self.tree(chart)?;
         if self.chart_of_input[hint as usize] != chart {
-            return bvh.closest(p, None).map(|h| h.triangle);
+            return self.tree(chart)?.closest(p, None).map(|h| h.triangle);
         }
         let within = |t: u32| self.chart_of_input[t as usize] == chart;
-        walk::walk_or_search(self.input, self.topo, bvh, hint, p, within).map(|f| f.triangle)
+        let foot = walk::walk(self.input, self.topo, hint, p, within);
+        if foot.settled {
+            return Some(foot.triangle);
+        }
+        walk::settle(self.tree(chart)?, p, foot).map(|f| f.triangle)
     }
 
     /// The texture coordinate at `p` (a point of the input) in `chart`, located from

@@ -105,7 +105,12 @@ pub fn walk_or_search(
     q: DVec3,
     within: impl Fn(u32) -> bool,
 ) -> Option<Foot> {
-    let foot = walk(input, topo, start, q, within);
+    settle(bvh, q, walk(input, topo, start, q, within))
+}
+
+/// `foot` when the walk settled; else the tree's answer, searched from where the walk got to
+/// (`bvh` indexes the triangles the walk was allowed on). `None` only for an empty tree.
+pub fn settle(bvh: &TriangleBvh, q: DVec3, foot: Foot) -> Option<Foot> {
     if foot.settled {
         return Some(foot);
     }
