@@ -729,6 +729,25 @@ mod tests {
         ]);
     }
 
+    /// Every recipe shipped in config/recipes parses and validates, including one added
+    /// later without a change here.
+    #[test]
+    fn every_shipped_recipe_is_valid() {
+        let mut names = Vec::new();
+        for entry in std::fs::read_dir("config/recipes").unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                let recipe =
+                    Recipe::from_path(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                assert!(!recipe.steps.is_empty(), "{}", path.display());
+                names.push(path.file_stem().unwrap().to_string_lossy().into_owned());
+            }
+        }
+        for shipped in ["face-scan", "face-scan-denoise", "normals-only", "remesh"] {
+            assert!(names.iter().any(|n| n == shipped), "{shipped} not found");
+        }
+    }
+
     /// Recipes keep the hash they had before the boundary vocabulary and the
     /// `[experimental]` table (the daemon's job key is built from it): the hashes below were
     /// computed by the code before that change, each for the old spelling; the new spelling
