@@ -309,6 +309,61 @@ fn undo_turns(c: &mut Corners, old: &[DVec3]) {
     }
 }
 
+/// Where the vertices were, and what they were on, before a round's relax and projection.
+struct Placement {
+    pos: Vec<DVec3>,
+    vseg: Vec<u32>,
+    vtri: Vec<u32>,
+}
+
+impl Placement {
+    fn of(c: &Corners) -> Placement {
+        Placement {
+            pos: c.pos.clone(),
+            vseg: c.vseg.clone(),
+            vtri: c.vtri.clone(),
+        }
+    }
+}
+
+/// After the relax and the projection of a round: a face they made degenerate gets its
+/// moved corners put back where the round found them (on the surface, or on their line),
+/// repeated until none is left. Each vertex checks its own projection against its
+/// neighbours' positions before it, so two line vertices projected together can land on
+/// one straight segment with a third corner: where a short line turns sharply, as the
+/// border of an input triangle hanging off the scan by one vertex does (james), the face
+/// across the turn would have no area. Turned faces are left to [`repair`], which can
+/// move or collapse them; it cannot mend a face of three line edges.
+fn undo_degenerate(c: &mut Corners, before: &Placement) {
+    loop {
+        let bad: Vec<usize> = (0..c.face_count())
+            .into_par_iter()
+            .filter(|&f| {
+                let v = [0, 1, 2].map(|i| c.vtx[3 * f + i] as usize);
+                !c.face_dead[f]
+                    && v.iter().any(|&v| c.pos[v] != before.pos[v])
+                    && ops::degenerate(c.face_positions(f))
+                    && !ops::degenerate(v.map(|v| before.pos[v]))
+            })
+            .collect();
+        let mut put_back = 0;
+        for f in bad {
+            for i in 0..3 {
+                let v = c.vtx[3 * f + i] as usize;
+                if c.pos[v] != before.pos[v] {
+                    c.pos[v] = before.pos[v];
+                    c.vseg[v] = before.vseg[v];
+                    c.vtri[v] = before.vtri[v];
+                    put_back += 1;
+                }
+            }
+        }
+        if put_back == 0 {
+            return;
+        }
+    }
+}
+
 fn relaxed(c: &Corners, sizing: &Sizing, v: u32, sc: &mut Scratch) -> DVec3 {
     let p = c.pos[v as usize];
     if c.vertex_dead[v as usize] || c.locked[v as usize] {
@@ -418,8 +473,10 @@ pub fn run(
         counts.splits += split_long(c, lines, sizing);
         counts.collapses += collapse_short(c, sizing, &mut sc);
         counts.valence_flips += equalize_valences(c, &mut sc);
+        let before = Placement::of(c);
         relax(c, sizing);
         project(c, input);
+        undo_degenerate(c, &before);
         sizing.follow(c, lines, mesh);
         counts.angle_flips += flip_angles(c, &mut sc);
     }

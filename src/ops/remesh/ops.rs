@@ -23,11 +23,16 @@ fn q(p: [DVec3; 3]) -> f64 {
     quality(p[0].to_array(), p[1].to_array(), p[2].to_array())
 }
 
+/// A face with corners `p` is too thin to have an orientation (the rule of [`face_ok`]).
+pub fn degenerate(p: [DVec3; 3]) -> bool {
+    q(p) <= DEGENERATE_QUALITY
+}
+
 /// A face with corners `p` may replace one whose (unnormalised) normal was `before`: it
 /// does not turn by more than 90° and is not degenerate.
 pub fn face_ok(p: [DVec3; 3], before: DVec3) -> bool {
     let n = (p[1] - p[0]).cross(p[2] - p[0]);
-    n.dot(before) > 0.0 && q(p) > DEGENERATE_QUALITY
+    n.dot(before) > 0.0 && !degenerate(p)
 }
 
 /// Splits the edge of half-edge `h` at `m` (a point of the edge, or of its line for a
