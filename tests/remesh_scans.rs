@@ -181,3 +181,29 @@ fn igea() {
     let rel = "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz";
     check(rel, &common::scan(rel));
 }
+
+/// The USNM coral (photogrammetry: 20,640 seam edges, crumpled, 31 non-manifold edges) at
+/// 0.5 % of the diagonal. Its atlas keeps the share of good triangles below the bar above
+/// (docs/remeshing.md, "Not done yet"), so this checks only what must hold on any input:
+/// no zero-area face (the repair pass once traded two turned faces for two without area
+/// here), no new non-manifold edge, no crack, no chart jump.
+#[test]
+fn photogrammetry_atlas_without_zero_area_faces() {
+    let rel = "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz";
+    let mesh = common::scan(rel);
+    let params = RemeshParams {
+        edge_fraction: Some(0.005),
+        ..RemeshParams::default()
+    };
+    let (out, _) = remesh(&mesh, &params).unwrap();
+    out.check_invariants().unwrap();
+    let a = audit(&mesh, &out);
+    assert_eq!(a.zero_area_faces, 0, "{a:?}");
+    assert!(
+        a.after.non_manifold_edges <= a.before.non_manifold_edges,
+        "{a:?}"
+    );
+    assert_eq!(a.chart_jumps, 0, "{a:?}");
+    let m = compare(&out, &mesh, &MetricsOptions::default()).unwrap();
+    assert_eq!(m.topology.cracks, 0);
+}

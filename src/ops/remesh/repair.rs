@@ -8,13 +8,14 @@
 //! the metrics and the output's triangle origins read it: the input triangle closest to
 //! the face's centroid.
 //!
-//! Each turned face, in index order, gets the first of these after which fewer of the faces
-//! it changes disagree with the input (turned, or degenerate): flip one of its free edges;
-//! move one of its corners (a free vertex to the input's closest point to the centroid of
-//! its fan or to itself, or halfway to the first; a line vertex along its line towards the
-//! middle of its line neighbours); collapse one of its edges under the remesher's
-//! topological rules. A face's agreement depends on its own corners only, so each repair
-//! lowers the number of disagreeing faces and the pass ends. It goes round again, over the
+//! Each turned face, in index order, gets the first of these after which the faces it
+//! changes disagree less with the input (each turned face counts 1, a degenerate one more
+//! than any number of turned ones, so no repair trades turned faces for one without area):
+//! flip one of its free edges; move one of its corners (a free vertex to the input's
+//! closest point to the centroid of its fan or to itself, or halfway to the first; a line
+//! vertex along its line towards the middle of its line neighbours); collapse one of its
+//! edges under the remesher's topological rules. A face's agreement depends on its own
+//! corners only, so each repair lowers the total and the pass ends. It goes round again, over the
 //! faces still turned and those around what changed, while a round repairs something: a
 //! face that could not be repaired may be once its neighbours have moved.
 //!
@@ -87,7 +88,23 @@ impl Input<'_> {
     fn face_agrees(&self, c: &Corners, f: usize) -> bool {
         self.agrees(c.face_positions(f), c.vtri[c.vtx[3 * f] as usize])
     }
+
+    /// How much a face with corners `p` counts against a repair: 0 when it agrees, 1 when
+    /// it is turned, [`DEGENERATE_WEIGHT`] when it has no area. A repair must lower the sum
+    /// over the faces it changes, so it never trades turned faces for a degenerate one.
+    fn badness(&self, p: [DVec3; 3], hint: u32) -> usize {
+        if ops::degenerate(p) {
+            DEGENERATE_WEIGHT
+        } else {
+            usize::from(!self.agrees(p, hint))
+        }
+    }
 }
+
+/// A degenerate face outweighs any number of turned faces around one vertex or edge: its
+/// normal is undefined, which breaks shading and normals downstream (a turned face only
+/// looks wrong). More than the faces any fan has.
+const DEGENERATE_WEIGHT: usize = 1 << 16;
 
 /// The live faces turned against the input, in index order.
 fn turned_faces(c: &Corners, input: &Input) -> Vec<usize> {
@@ -208,14 +225,18 @@ impl Pass<'_> {
             let (cc, d) = (c.vtx[prev(h) as usize], c.vtx[prev(g) as usize]);
             let p = |v: u32| c.pos[v as usize];
             let hint = c.vtri[cc as usize];
-            let before = [h, g]
+            let before: usize = [h, g]
                 .iter()
-                .filter(|&&k| !self.input.face_agrees(c, (k / 3) as usize))
-                .count();
-            let after = [[p(cc), p(a), p(d)], [p(d), p(b), p(cc)]]
+                .map(|&k| {
+                    let f = (k / 3) as usize;
+                    self.input
+                        .badness(c.face_positions(f), c.vtri[c.vtx[3 * f] as usize])
+                })
+                .sum();
+            let after: usize = [[p(cc), p(a), p(d)], [p(d), p(b), p(cc)]]
                 .iter()
-                .filter(|&&q| !self.input.agrees(q, hint))
-                .count();
+                .map(|&q| self.input.badness(q, hint))
+                .sum();
             if after < before {
                 ops::flip(c, h);
                 self.moved.extend([a, b, cc, d]);
@@ -311,21 +332,23 @@ impl Pass<'_> {
         false
     }
 
-    /// With `v` at `p`, how many faces around it disagree with the input; with `into`, as
-    /// after `v` goes into that neighbour (the faces they share are gone).
+    /// With `v` at `p`, how much the faces around it disagree with the input (the sum of
+    /// [`Input::badness`]); with `into`, as after `v` goes into that neighbour (the faces
+    /// they share are gone).
     fn disagreements(&mut self, c: &Corners, v: u32, p: DVec3, into: Option<u32>) -> usize {
         let hint = c.vtri[into.unwrap_or(v) as usize];
         c.fan(v, &mut self.hs);
         self.hs
             .iter()
-            .filter(|&&h| {
+            .map(|&h| {
                 let (x, y) = (c.dest(h), c.vtx[prev(h) as usize]);
-                into.is_none_or(|n| x != n && y != n)
-                    && !self
-                        .input
-                        .agrees([p, c.pos[x as usize], c.pos[y as usize]], hint)
+                if into.is_some_and(|n| x == n || y == n) {
+                    return 0;
+                }
+                self.input
+                    .badness([p, c.pos[x as usize], c.pos[y as usize]], hint)
             })
-            .count()
+            .sum()
     }
 }
 
