@@ -16,7 +16,7 @@ use scanmill::mesh::build::LoadOptions;
 use scanmill::metrics::surface::SurfaceIndex;
 use scanmill::metrics::texture::TextureDeviation;
 use scanmill::metrics::{MetricsOptions, compare};
-use scanmill::ops::decimate::audit::audit;
+use scanmill::ops::decimate::audit::{Audit, audit};
 use scanmill::ops::decimate::{DecimateParams, decimate};
 use scanmill::ops::remesh::{RemeshParams, remesh};
 
@@ -189,15 +189,11 @@ fn igea() {
 /// here), no new non-manifold edge, no crack, no chart jump.
 #[test]
 fn photogrammetry_atlas_without_zero_area_faces() {
-    let rel = "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz";
-    let mesh = common::scan(rel);
-    let params = RemeshParams {
-        edge_fraction: Some(0.005),
-        ..RemeshParams::default()
-    };
-    let (out, _) = remesh(&mesh, &params).unwrap();
+    let (mesh, out, a) = remesh_at(
+        "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz",
+        0.005,
+    );
     out.check_invariants().unwrap();
-    let a = audit(&mesh, &out);
     assert_eq!(a.zero_area_faces, 0, "{a:?}");
     assert!(
         a.after.non_manifold_edges <= a.before.non_manifold_edges,
@@ -206,4 +202,29 @@ fn photogrammetry_atlas_without_zero_area_faces() {
     assert_eq!(a.chart_jumps, 0, "{a:?}");
     let m = compare(&out, &mesh, &MetricsOptions::default()).unwrap();
     assert_eq!(m.topology.cracks, 0);
+}
+
+/// James at 0.4 % of the diagonal (106k faces): its seams stay where the input's are. Where
+/// an input seam ends inside its chart, the faces between two lines at the seam's end once
+/// read the end vertex's coordinate from different sides of the seam, one seam vertex off
+/// the input's seams (export::corner_vertex_uvs).
+#[test]
+fn james_fine_keeps_its_seams() {
+    let (_, _, a) = remesh_at("textured/james_face_stereo_capture/james.obj", 0.004);
+    assert_eq!(a.seam_vertices_off_seam, 0, "{a:?}");
+    assert_eq!(a.zero_area_faces, 0, "{a:?}");
+    assert_eq!(a.chart_jumps, 0, "{a:?}");
+}
+
+/// Scan `rel` remeshed (the defaults) at `fraction` of its diagonal: the input, the result
+/// and the audit of the two.
+fn remesh_at(rel: &str, fraction: f64) -> (Mesh, Mesh, Audit) {
+    let mesh = common::scan(rel);
+    let params = RemeshParams {
+        edge_fraction: Some(fraction),
+        ..RemeshParams::default()
+    };
+    let (out, _) = remesh(&mesh, &params).unwrap();
+    let a = audit(&mesh, &out);
+    (mesh, out, a)
 }

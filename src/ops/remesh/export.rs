@@ -7,6 +7,8 @@
 //! coordinate is that input triangle's, interpolated at `v` (barycentric). Nudging into the
 //! face picks the right side of a seam that runs inside one chart; searching only the chart
 //! keeps every corner in the chart its face was cut from, so the photo stays where it was.
+//! At a line's end or a junction of lines the faces between two line edges take one
+//! coordinate, the one most of them find ([`corner_vertex_uvs`]).
 //! The searches walk over the chart's triangles from the input triangle the vertex was last
 //! projected onto ([`walk`]); a chart's tree is built only for a search that cannot walk.
 
@@ -188,11 +190,7 @@ pub fn export(
 /// The wedge of vertex `v` with texture coordinate `uv`: an existing one of `v` within
 /// [`SAME_UV`], or a new one.
 fn wedge(out: &mut Mesh, known: &mut Vec<Index>, v: u32, uv: Option<DVec2>) -> Index {
-    let same = |w: &Index| match (out.wedge_texcoord(*w), uv) {
-        (Some(a), Some(b)) => a.distance(b) <= SAME_UV,
-        (None, None) => true,
-        _ => false,
-    };
+    let same = |w: &Index| same_uv(out.wedge_texcoord(*w), uv);
     if let Some(&w) = known.iter().find(|w| same(w)) {
         return w;
     }
@@ -226,6 +224,7 @@ fn corner_uvs(
         return None;
     }
     let chart_of_input = charts.chart_of_input;
+    let at_corners = corner_vertex_uvs(c, charts);
     Some(
         faces
             .par_iter()
@@ -249,12 +248,93 @@ fn corner_uvs(
                                 None => charts.uv(chart, p[k], inside, hint),
                             }
                         }
+                        VKind::Corner => match at_corners.get(&(3 * f as u32 + k as u32)) {
+                            Some(&uv) => uv,
+                            None => charts.uv(chart, p[k], inside, hint),
+                        },
                         _ => charts.uv(chart, p[k], inside, hint),
                     }
                 })
             })
             .collect(),
     )
+}
+
+/// The texture coordinate of each corner at a `Corner` vertex (a line's end or a junction
+/// of lines), by half-edge. The faces around such a vertex fall into sectors between its
+/// line edges; all corners of one sector take one coordinate, the one most of the sector's
+/// faces find just inside themselves (ties to the first in fan order). Found face by face,
+/// a thin face beside a line could land across the input's seam where the line's chord
+/// leaves the input's polyline, and where a seam ends inside its chart (a slit: the input
+/// vertex has two coordinates in one chart) two faces of one sector then read different
+/// coordinates, which makes a seam no line runs along (james at 0.3–0.5 % of the diagonal).
+fn corner_vertex_uvs(c: &Corners, charts: &ChartIndex) -> HashMap<u32, Option<DVec2>> {
+    let corners: Vec<u32> = (0..c.pos.len() as u32)
+        .filter(|&v| c.kind[v as usize] == VKind::Corner && !c.vertex_dead[v as usize])
+        .collect();
+    corners
+        .par_iter()
+        .map_init(Vec::new, |hs, &v| sector_uvs(c, charts, v, hs))
+        .flatten_iter()
+        .collect()
+}
+
+/// [`corner_vertex_uvs`] at vertex `v`: (half-edge, coordinate) for each face around it.
+fn sector_uvs(
+    c: &Corners,
+    charts: &ChartIndex,
+    v: u32,
+    hs: &mut Vec<u32>,
+) -> Vec<(u32, Option<DVec2>)> {
+    c.fan(v, hs);
+    let n = hs.len();
+    // Sector of each face of the fan: a new one starts across a line (or border) edge.
+    let mut sector = vec![0usize; n];
+    for i in 1..n {
+        sector[i] = sector[i - 1] + usize::from(c.is_constrained(hs[i]));
+    }
+    let closed = n > 1 && c.rotate(hs[n - 1]) == hs[0];
+    if closed && !c.is_constrained(hs[0]) {
+        let last = sector[n - 1];
+        for s in sector.iter_mut().filter(|s| **s == last) {
+            *s = 0;
+        }
+    }
+    let found: Vec<Option<DVec2>> = hs
+        .iter()
+        .map(|&h| {
+            let f = (h / 3) as usize;
+            let p = c.face_positions(f);
+            let k = (h % 3) as usize;
+            let inside = p[k] + NUDGE * ((p[0] + p[1] + p[2]) / 3.0 - p[k]);
+            charts.uv(c.chart[f], p[k], inside, c.vtri[v as usize])
+        })
+        .collect();
+    let votes = |i: usize| {
+        (0..n)
+            .filter(|&j| sector[j] == sector[i] && same_uv(found[j], found[i]))
+            .count()
+    };
+    let mut chosen: HashMap<usize, usize> = HashMap::new();
+    for (i, &s) in sector.iter().enumerate() {
+        let best = chosen.entry(s).or_insert(i);
+        if votes(i) > votes(*best) {
+            *best = i;
+        }
+    }
+    hs.iter()
+        .enumerate()
+        .map(|(i, &h)| (h, found[chosen[&sector[i]]]))
+        .collect()
+}
+
+/// Two texture coordinates that are one wedge ([`SAME_UV`]).
+fn same_uv(a: Option<DVec2>, b: Option<DVec2>) -> bool {
+    match (a, b) {
+        (Some(a), Some(b)) => a.distance(b) <= SAME_UV,
+        (None, None) => true,
+        _ => false,
+    }
 }
 
 /// The input triangle of line segment `seg` in `chart` on the side of `inside` (a line

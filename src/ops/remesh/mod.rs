@@ -415,7 +415,8 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
     let adaptive = params.adaptive_for(mesh).transpose()?;
     // The adaptive field's minimum bounds its density; the check below uses the field.
     let shortest = adaptive.map_or(l, |a| a.min_edge);
-    let expected = faces_for(surface_area(mesh), shortest);
+    let area = surface_area(mesh);
+    let expected = faces_for(area, shortest);
     if expected.is_nan() || (adaptive.is_none() && expected > MAX_OUTPUT_FACES) {
         return Err(RemeshError::TooDense {
             edge_length: l,
@@ -435,6 +436,9 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
                     expected,
                     limit: MAX_OUTPUT_FACES,
                 });
+            }
+            if let Some(note) = growth_note(faces_for(area, l), expected) {
+                tracing::warn!("remesh: {note}");
             }
             (Sizing::adaptive(sizes), Some(report))
         }
@@ -477,6 +481,26 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         patches: None,
     };
     Ok((out, report))
+}
+
+/// An adaptive remesh that asks for more than this many times the triangles of a uniform
+/// one at its longest edge gets a warning before it starts. On the scans in
+/// ../shared/data the defaults ask for 3–5 times (docs/remeshing.md); the USNM coral, a
+/// crumpled photogrammetry surface, for about 12 times (750k triangles from 100k).
+const GROWTH_WARNING: f64 = 8.0;
+
+/// What to tell the user when the adaptive size asks for `expected` triangles where a
+/// uniform remesh at the longest edge makes `uniform`.
+fn growth_note(uniform: f64, expected: f64) -> Option<String> {
+    let factor = expected / uniform.max(1.0);
+    (factor > GROWTH_WARNING).then(|| {
+        format!(
+            "the adaptive size asks for about {expected:.0} triangles, {factor:.1}× the \
+             {uniform:.0} of a uniform remesh at the longest edge: the surface bends at the \
+             scale of the shortest edge almost everywhere (a crumpled or noisy scan). A larger \
+             `tolerance` or `min_edge_length` (or their `_fraction`s) makes fewer"
+        )
+    })
 }
 
 /// The triangles an adaptive field asks for: each input triangle's area at the mean size

@@ -466,3 +466,13 @@ fn repair_leaves_a_mesh_that_agrees_untouched() {
     assert_eq!(r, repair::Repairs::default());
     assert_eq!(c.pos, before);
 }
+
+/// The adaptive size's warning: only past eight times the triangles of a uniform remesh at
+/// the longest edge (the scans' 3–5 times pass), and it says how many and what to change.
+#[test]
+fn growth_note_only_for_many_more_triangles() {
+    assert_eq!(super::growth_note(24_000.0, 111_000.0), None);
+    let note = super::growth_note(61_000.0, 639_316.0).unwrap();
+    assert!(note.contains("639316") && note.contains("10.5×"), "{note}");
+    assert!(note.contains("tolerance"), "{note}");
+}
