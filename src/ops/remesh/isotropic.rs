@@ -260,57 +260,29 @@ pub fn flip_angles(c: &mut Corners, sc: &mut Scratch) -> usize {
 /// neighbours along their chord. A move that would turn a face over is not made. With an
 /// adaptive size, a face's weight is its area over its squared size (pmp-library's
 /// weighting), so vertices do not drift towards the large triangles of the coarse parts.
-pub fn relax(c: &mut Corners, sizing: &Sizing) {
-    let new: Vec<DVec3> = (0..c.pos.len() as u32)
+pub fn relax(c: &mut Corners, sizing: &Sizing, before: &Placement) {
+    c.pos = (0..c.pos.len() as u32)
         .into_par_iter()
         .map_init(Scratch::default, |sc, v| relaxed(c, sizing, v, sc))
         .collect();
-    let old = std::mem::replace(&mut c.pos, new);
-    undo_turns(c, &old);
+    undo_turns(c, before);
 }
 
-/// After a pass that moved every vertex at once from `old`: each vertex checked its own
-/// move against its neighbours' old positions, so two neighbours moving together can still
-/// turn a face over. Every face that now faces against (or across, or is degenerate where it
-/// was not) its orientation at `old` gets its moved corners put back, repeated until none
-/// is left. Terminates: each round puts back at least one moved vertex, and a face of
-/// unmoved corners is as it was. (Not after the projection: putting a vertex back there
-/// would leave it off the surface; the last pass, [`repair`], sees to what turns there.)
-fn undo_turns(c: &mut Corners, old: &[DVec3]) {
-    loop {
-        let turned: Vec<usize> = (0..c.face_count())
-            .into_par_iter()
-            .filter(|&f| {
-                if c.face_dead[f] {
-                    return false;
-                }
-                let v = [0, 1, 2].map(|i| c.vtx[3 * f + i] as usize);
-                if v.iter().all(|&v| c.pos[v] == old[v]) {
-                    return false;
-                }
-                let before = v.map(|v| old[v]);
-                let b = (before[1] - before[0]).cross(before[2] - before[0]);
-                !ops::face_ok(c.face_positions(f), b)
-            })
-            .collect();
-        let mut moved_back = 0;
-        for f in turned {
-            for i in 0..3 {
-                let v = c.vtx[3 * f + i] as usize;
-                if c.pos[v] != old[v] {
-                    c.pos[v] = old[v];
-                    moved_back += 1;
-                }
-            }
-        }
-        if moved_back == 0 {
-            return;
-        }
-    }
+/// After the relax: each vertex checked its own move against its neighbours' positions
+/// before it, so two neighbours moving together can still turn a face over. Every face
+/// that now faces against (or across, or is degenerate where it was not) its orientation
+/// before the round gets its moved corners put back ([`put_back`]). (Not after the
+/// projection: putting a vertex back there would leave it off the surface; the last pass,
+/// [`repair`], sees to what turns there.)
+fn undo_turns(c: &mut Corners, before: &Placement) {
+    put_back(c, before, |c, f, v| {
+        let b = v.map(|v| before.pos[v]);
+        !ops::face_ok(c.face_positions(f), (b[1] - b[0]).cross(b[2] - b[0]))
+    });
 }
 
 /// Where the vertices were, and what they were on, before a round's relax and projection.
-struct Placement {
+pub struct Placement {
     pos: Vec<DVec3>,
     vseg: Vec<u32>,
     vtri: Vec<u32>,
@@ -324,44 +296,60 @@ impl Placement {
             vtri: c.vtri.clone(),
         }
     }
+
+    fn moved(&self, c: &Corners, v: usize) -> bool {
+        c.pos[v] != self.pos[v]
+    }
 }
 
 /// After the relax and the projection of a round: a face they made degenerate gets its
-/// moved corners put back where the round found them (on the surface, or on their line),
-/// repeated until none is left. Each vertex checks its own projection against its
-/// neighbours' positions before it, so two line vertices projected together can land on
-/// one straight segment with a third corner: where a short line turns sharply, as the
+/// moved corners put back ([`put_back`]). Each vertex checks its own projection against
+/// its neighbours' positions before it, so two line vertices projected together can land
+/// on one straight segment with a third corner: where a short line turns sharply, as the
 /// border of an input triangle hanging off the scan by one vertex does (james), the face
 /// across the turn would have no area. Only faces with a moved line vertex are looked at:
 /// free vertices land on a surface, not on one segment, and checking every face cost 5 %
 /// of a james remesh. Turned faces are left to [`repair`], which can move or collapse them
 /// (it cannot mend a face of three line edges).
 fn undo_degenerate(c: &mut Corners, before: &Placement) {
+    put_back(c, before, |c, f, v| {
+        v.iter()
+            .any(|&v| c.kind[v] == VKind::Line && before.moved(c, v))
+            && ops::degenerate(c.face_positions(f))
+            && !ops::degenerate(v.map(|v| before.pos[v]))
+    });
+}
+
+/// Puts the moved corners of every live face that `bad` (face, its corners) picks back
+/// where `before` had them (position, line segment, input triangle), repeated until no
+/// face with a moved corner is picked. Terminates: each round puts back at least one moved
+/// vertex.
+fn put_back(
+    c: &mut Corners,
+    before: &Placement,
+    bad: impl Fn(&Corners, usize, [usize; 3]) -> bool + Sync,
+) {
     loop {
-        let bad: Vec<usize> = (0..c.face_count())
+        let picked: Vec<usize> = (0..c.face_count())
             .into_par_iter()
             .filter(|&f| {
                 let v = [0, 1, 2].map(|i| c.vtx[3 * f + i] as usize);
-                !c.face_dead[f]
-                    && v.iter()
-                        .any(|&v| c.kind[v] == VKind::Line && c.pos[v] != before.pos[v])
-                    && ops::degenerate(c.face_positions(f))
-                    && !ops::degenerate(v.map(|v| before.pos[v]))
+                !c.face_dead[f] && v.iter().any(|&v| before.moved(c, v)) && bad(c, f, v)
             })
             .collect();
-        let mut put_back = 0;
-        for f in bad {
+        let mut put = 0;
+        for f in picked {
             for i in 0..3 {
                 let v = c.vtx[3 * f + i] as usize;
-                if c.pos[v] != before.pos[v] {
+                if before.moved(c, v) {
                     c.pos[v] = before.pos[v];
                     c.vseg[v] = before.vseg[v];
                     c.vtri[v] = before.vtri[v];
-                    put_back += 1;
+                    put += 1;
                 }
             }
         }
-        if put_back == 0 {
+        if put == 0 {
             return;
         }
     }
@@ -477,7 +465,7 @@ pub fn run(
         counts.collapses += collapse_short(c, sizing, &mut sc);
         counts.valence_flips += equalize_valences(c, &mut sc);
         let before = Placement::of(c);
-        relax(c, sizing);
+        relax(c, sizing, &before);
         project(c, input);
         undo_degenerate(c, &before);
         sizing.follow(c, lines, mesh);

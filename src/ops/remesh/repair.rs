@@ -86,7 +86,11 @@ impl Input<'_> {
     }
 
     fn face_agrees(&self, c: &Corners, f: usize) -> bool {
-        self.agrees(c.face_positions(f), c.vtri[c.vtx[3 * f] as usize])
+        self.agrees(c.face_positions(f), face_hint(c, f))
+    }
+
+    fn face_badness(&self, c: &Corners, f: usize) -> usize {
+        self.badness(c.face_positions(f), face_hint(c, f))
     }
 
     /// How much a face with corners `p` counts against a repair: 0 when it agrees, 1 when
@@ -99,6 +103,11 @@ impl Input<'_> {
             usize::from(!self.agrees(p, hint))
         }
     }
+}
+
+/// Where the search for face `f`'s input triangle starts: its first corner's last one.
+fn face_hint(c: &Corners, f: usize) -> u32 {
+    c.vtri[c.vtx[3 * f] as usize]
 }
 
 /// A degenerate face outweighs any number of turned faces around one vertex or edge: its
@@ -227,11 +236,7 @@ impl Pass<'_> {
             let hint = c.vtri[cc as usize];
             let before: usize = [h, g]
                 .iter()
-                .map(|&k| {
-                    let f = (k / 3) as usize;
-                    self.input
-                        .badness(c.face_positions(f), c.vtri[c.vtx[3 * f] as usize])
-                })
+                .map(|&k| self.input.face_badness(c, (k / 3) as usize))
                 .sum();
             let after: usize = [[p(cc), p(a), p(d)], [p(d), p(b), p(cc)]]
                 .iter()
