@@ -311,7 +311,12 @@ fn bump() -> Mesh {
 #[test]
 fn adaptive_bump_gets_shorter_edges_than_the_flat_part() {
     let mesh = bump();
-    let (out, report) = remesh(&mesh, &adaptive(0.04)).unwrap();
+    // The curvature alone: the plate's border is not refined (see the border tests).
+    let params = RemeshParams {
+        border_edge_ratio: Some(1.0),
+        ..adaptive(0.04)
+    };
+    let (out, report) = remesh(&mesh, &params).unwrap();
     let centre = glam::DVec2::new(20.0, 20.0);
     let (mut top, mut flat) = (Vec::new(), Vec::new());
     for (a, b) in edges(&out) {
@@ -330,7 +335,11 @@ fn adaptive_bump_gets_shorter_edges_than_the_flat_part() {
     let l = report.edge_length;
     assert!(flat > 0.75 * l && flat < 1.2 * l, "flat {flat}, L {l}");
     // The uniform remesh at the same L does not refine the bump.
-    let (uni, _) = remesh(&mesh, &fraction(0.04)).unwrap();
+    let uniform = RemeshParams {
+        border_edge_ratio: Some(1.0),
+        ..fraction(0.04)
+    };
+    let (uni, _) = remesh(&mesh, &uniform).unwrap();
     assert!(
         out.triangles.len() > uni.triangles.len(),
         "{}",
@@ -475,4 +484,130 @@ fn growth_note_only_for_many_more_triangles() {
     let note = super::growth_note(61_000.0, 639_316.0).unwrap();
     assert!(note.contains("639316") && note.contains("10.5×"), "{note}");
     assert!(note.contains("tolerance"), "{note}");
+}
+
+/// Mean length of the edges of `mesh` whose middle is within `near` of the square
+/// [lo, hi]²'s sides (`true`) or further in than `far` (`false`).
+fn edge_lengths_by_border_distance(
+    mesh: &Mesh,
+    lo: f64,
+    hi: f64,
+    near: f64,
+    far: f64,
+) -> (f64, f64) {
+    let (mut border, mut inside) = (Vec::new(), Vec::new());
+    for (a, b) in edges(mesh) {
+        let m = 0.5 * (a + b);
+        let d = [m.x - lo, hi - m.x, m.y - lo, hi - m.y]
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        if d < near {
+            border.push(a.distance(b));
+        } else if d > far {
+            inside.push(a.distance(b));
+        }
+    }
+    (mean_and_cv(&border).0, mean_and_cv(&inside).0)
+}
+
+/// The default refines the border: edges along the square's sides at about half the
+/// target, those more than 2·L in at the target, and every angle still at 30° or more
+/// almost everywhere; `border_edge_ratio = 1` leaves the border at the target.
+#[test]
+fn a_border_gets_edges_of_half_the_target_length() {
+    let mesh = shapes::grid(60, 60);
+    let (lo, hi) = mesh.bounding_box().unwrap();
+    let (lo, hi) = (lo.x, hi.x);
+    let (out, report) = remesh(&mesh, &fraction(0.02)).unwrap();
+    let l = report.edge_length;
+    assert_eq!(report.border_edge, Some(0.5 * l));
+    let (border, inside) = edge_lengths_by_border_distance(&out, lo, hi, 0.1 * l, 2.5 * l);
+    assert!(
+        (0.4 * l..0.7 * l).contains(&border),
+        "border {border}, L {l}"
+    );
+    assert!(
+        (0.85 * l..1.2 * l).contains(&inside),
+        "inside {inside}, L {l}"
+    );
+    assert!(
+        report.quality_after.share_min_angle_30 >= 0.99,
+        "{report:?}"
+    );
+    let a = audit(&mesh, &out);
+    assert_eq!(a.after.boundary_loops, 1);
+    assert_eq!(a.flipped_faces, 0);
+
+    let off = RemeshParams {
+        border_edge_ratio: Some(1.0),
+        ..fraction(0.02)
+    };
+    let (uniform, report) = remesh(&mesh, &off).unwrap();
+    assert_eq!(report.border_edge, None);
+    let (border, _) = edge_lengths_by_border_distance(&uniform, lo, hi, 0.1 * l, 2.5 * l);
+    assert!(border > 0.85 * l, "border {border}, L {l}");
+    assert!(out.triangles.len() > uniform.triangles.len());
+}
+
+/// A closed mesh has no border to refine: the default's result is the one without.
+#[test]
+fn a_closed_mesh_is_not_affected_by_the_border_refinement() {
+    let mesh = shapes::torus(1.0, 0.3, 40, 20);
+    let off = RemeshParams {
+        border_edge_ratio: Some(1.0),
+        ..fraction(0.05)
+    };
+    let (a, ra) = remesh(&mesh, &fraction(0.05)).unwrap();
+    let (b, _) = remesh(&mesh, &off).unwrap();
+    assert_eq!(a, b);
+    assert_eq!(ra.border_edge, None);
+}
+
+/// With `target_faces` a refined border does not add to the count asked for: the whole
+/// field is scaled so the expected count is the target.
+#[test]
+fn target_faces_holds_with_a_refined_border() {
+    let mesh = shapes::grid(60, 60);
+    let params = RemeshParams {
+        target_faces: Some(4000),
+        ..RemeshParams::default()
+    };
+    let (out, report) = remesh(&mesh, &params).unwrap();
+    let n = out.triangles.len() as f64;
+    assert!((3600.0..4400.0).contains(&n), "{n} faces");
+    let border = report.border_edge.unwrap();
+    assert!(
+        (border - 0.5 * report.edge_length).abs() < 1e-9 * border,
+        "{report:?}"
+    );
+}
+
+#[test]
+fn border_edge_ratio_validates() {
+    for bad in [0.0, 0.1, 1.5, f64::NAN] {
+        let p = RemeshParams {
+            border_edge_ratio: Some(bad),
+            ..fraction(0.01)
+        };
+        assert!(
+            p.validate().unwrap_err().contains("border_edge_ratio"),
+            "{bad}"
+        );
+    }
+    let p = RemeshParams {
+        border_edge_ratio: Some(0.3),
+        ..fraction(0.01)
+    };
+    assert!(p.validate().is_ok());
+    let patches = RemeshParams {
+        method: Method::Patches,
+        border_edge_ratio: Some(0.5),
+        ..RemeshParams::default()
+    };
+    assert!(
+        patches
+            .validate()
+            .unwrap_err()
+            .contains("border_edge_ratio")
+    );
 }
