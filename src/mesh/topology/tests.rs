@@ -104,16 +104,18 @@ fn grid(n: u32, skip: impl Fn(u32, u32) -> bool) -> Mesh {
     m
 }
 
+/// Border edges, border loops and connected components.
+fn border_and_parts(c: &TopologyCounts) -> (usize, usize, usize) {
+    (c.boundary_edges, c.boundary_loops, c.components)
+}
+
 #[test]
 fn single_triangle() {
     let m = mesh(&quad_positions()[..3], &[[0, 1, 2]]);
     let topo = m.topology();
     let c = topo.counts();
     assert_eq!((c.vertices, c.triangles, c.wedges, c.edges), (3, 1, 3, 3));
-    assert_eq!(
-        (c.boundary_edges, c.boundary_loops, c.components),
-        (3, 1, 1)
-    );
+    assert_eq!(border_and_parts(&c), (3, 1, 1));
     assert_eq!(c.euler_characteristic, 1);
     assert_eq!(c.non_manifold_vertices + c.non_manifold_edges, 0);
     let l = &topo.boundary_chains()[0];
@@ -186,10 +188,7 @@ fn closed_tetrahedron() {
     let topo = m.topology();
     let c = topo.counts();
     assert_eq!((c.vertices, c.edges, c.triangles), (4, 6, 4));
-    assert_eq!(
-        (c.boundary_edges, c.boundary_loops, c.components),
-        (0, 0, 1)
-    );
+    assert_eq!(border_and_parts(&c), (0, 0, 1));
     assert_eq!((c.inconsistent_edges, c.non_manifold_vertices), (0, 0));
     assert_eq!(c.euler_characteristic, 2);
     for v in 0..4 {
@@ -238,10 +237,7 @@ fn bowtie_is_a_non_manifold_vertex_with_two_chains_in_one_loop() {
     assert_eq!((c.non_manifold_vertices, c.non_manifold_edges), (1, 0));
     assert_eq!(topo.non_manifold_vertices(), &[0]);
     assert_eq!(topo.vertex_fan_count(0), 2);
-    assert_eq!(
-        (c.boundary_edges, c.boundary_loops, c.components),
-        (6, 1, 1)
-    );
+    assert_eq!(border_and_parts(&c), (6, 1, 1));
     assert_eq!((c.boundary_chains, c.open_boundary_chains), (2, 0));
     let loops: Vec<_> = topo.boundary_chains().iter().map(|l| &l.vertices).collect();
     assert_eq!(loops, vec![&vec![0, 1, 2], &vec![0, 3, 4]]);
@@ -325,10 +321,7 @@ fn square_with_hole() {
     let topo = m.topology();
     let c = topo.counts();
     assert_eq!((c.vertices, c.triangles), (16, 16));
-    assert_eq!(
-        (c.boundary_edges, c.boundary_loops, c.components),
-        (16, 2, 1)
-    );
+    assert_eq!(border_and_parts(&c), (16, 2, 1));
     assert_eq!(c.euler_characteristic, 0);
     let loops = topo.boundary_chains();
     assert!(loops.iter().all(|l| l.closed));

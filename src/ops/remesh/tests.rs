@@ -158,26 +158,22 @@ fn a_length_that_would_make_too_many_triangles_is_refused_before_any_work() {
     assert!(remesh(&mesh, &fraction(0.03)).is_ok());
 }
 
+/// Validates the parameters of 1 % of the diagonal after `change`.
+fn validate_changed(change: impl FnOnce(&mut RemeshParams)) -> Result<(), String> {
+    let mut p = fraction(0.01);
+    change(&mut p);
+    p.validate()
+}
+
 #[test]
 fn params_validate() {
     assert!(RemeshParams::default().validate().is_err());
-    assert!(fraction(0.01).validate().is_ok());
-    let both = RemeshParams {
-        edge_length: Some(1.0),
-        ..fraction(0.01)
-    };
-    assert!(both.validate().is_err());
-    let patches = RemeshParams {
-        method: Method::Patches,
-        ..fraction(0.01)
-    };
-    assert!(patches.validate().unwrap_err().contains("isotropic"));
     assert!(fraction(0.0).validate().is_err());
-    let zero = RemeshParams {
-        iterations: 0,
-        ..fraction(0.01)
-    };
-    assert!(zero.validate().is_err());
+    assert!(validate_changed(|_| ()).is_ok());
+    assert!(validate_changed(|p| p.edge_length = Some(1.0)).is_err());
+    let patches = validate_changed(|p| p.method = Method::Patches);
+    assert!(patches.unwrap_err().contains("isotropic"));
+    assert!(validate_changed(|p| p.iterations = 0).is_err());
 }
 
 fn adaptive(f: f64) -> RemeshParams {
@@ -369,42 +365,40 @@ fn adaptive_is_deterministic_across_thread_counts() {
 
 #[test]
 fn adaptive_params_validate() {
-    assert!(adaptive(0.01).validate().is_ok());
-    let stray = RemeshParams {
-        tolerance: Some(0.1),
-        ..fraction(0.01)
+    let adaptive_changed = |change: &dyn Fn(&mut RemeshParams)| {
+        validate_changed(|p| {
+            p.adaptive = true;
+            change(p)
+        })
     };
-    assert!(stray.validate().unwrap_err().contains("adaptive = true"));
+    assert!(adaptive_changed(&|_| ()).is_ok());
+    let stray = validate_changed(|p| p.tolerance = Some(0.1));
+    assert!(stray.unwrap_err().contains("adaptive = true"));
     let faces = RemeshParams {
         adaptive: true,
         target_faces: Some(1000),
         ..RemeshParams::default()
     };
     assert!(faces.validate().unwrap_err().contains("target_faces"));
-    let both = RemeshParams {
-        tolerance: Some(0.1),
-        tolerance_fraction: Some(0.001),
-        ..adaptive(0.01)
-    };
-    assert!(both.validate().is_err());
+    let both = adaptive_changed(&|p| {
+        p.tolerance = Some(0.1);
+        p.tolerance_fraction = Some(0.001);
+    });
+    assert!(both.is_err());
     for bad in [0.0, -1.0, f64::NAN, 2.0] {
-        let p = RemeshParams {
-            tolerance_fraction: Some(bad),
-            ..adaptive(0.01)
-        };
-        assert!(p.validate().is_err(), "{bad}");
+        assert!(
+            adaptive_changed(&|p| p.tolerance_fraction = Some(bad)).is_err(),
+            "{bad}"
+        );
     }
-    let above = RemeshParams {
-        min_edge_fraction: Some(0.02),
-        ..adaptive(0.01)
-    };
-    assert!(above.validate().unwrap_err().contains("must not exceed"));
+    let above = adaptive_changed(&|p| p.min_edge_fraction = Some(0.02));
+    assert!(above.unwrap_err().contains("must not exceed"));
     // Mixed units: found when the scan is known.
+    assert!(adaptive_changed(&|p| p.min_edge_length = Some(10.0)).is_ok());
     let mixed = RemeshParams {
         min_edge_length: Some(10.0),
         ..adaptive(0.01)
     };
-    assert!(mixed.validate().is_ok());
     let e = remesh(&shapes::cube(), &mixed).unwrap_err();
     assert!(matches!(e, RemeshError::MinEdgeAboveMax { .. }), "{e}");
     let patches = RemeshParams {
@@ -585,29 +579,16 @@ fn target_faces_holds_with_a_refined_border() {
 #[test]
 fn border_edge_ratio_validates() {
     for bad in [0.0, 0.1, 1.5, f64::NAN] {
-        let p = RemeshParams {
-            border_edge_ratio: Some(bad),
-            ..fraction(0.01)
-        };
-        assert!(
-            p.validate().unwrap_err().contains("border_edge_ratio"),
-            "{bad}"
-        );
+        let e = validate_changed(|p| p.border_edge_ratio = Some(bad)).unwrap_err();
+        assert!(e.contains("border_edge_ratio"), "{bad}: {e}");
     }
-    let p = RemeshParams {
-        border_edge_ratio: Some(0.3),
-        ..fraction(0.01)
-    };
-    assert!(p.validate().is_ok());
+    assert!(validate_changed(|p| p.border_edge_ratio = Some(0.3)).is_ok());
+    // Patches refuse it (their borders are not refined).
     let patches = RemeshParams {
         method: Method::Patches,
         border_edge_ratio: Some(0.5),
         ..RemeshParams::default()
     };
-    assert!(
-        patches
-            .validate()
-            .unwrap_err()
-            .contains("border_edge_ratio")
-    );
+    let e = patches.validate().unwrap_err();
+    assert!(e.contains("border_edge_ratio"), "{e}");
 }

@@ -18,6 +18,15 @@
 //! Parameters carry the thesis' names, and their defaults are the thesis' Table A.2 values
 //! (the bilateral σ's converted to mean-edge units, see [`BilateralParams`]).
 
+/// `Params { field: recipe's value, else the default's, ... }` for the named fields, each
+/// an `Option` of the same name in the recipe's [`SmoothParamsFile`].
+macro_rules! recipe_or_default {
+    ($file:expr, $params:ident { $($field:ident),* $(,)? }) => {{
+        let d = $params::default();
+        $params { $($field: $file.$field.unwrap_or(d.$field)),* }
+    }};
+}
+
 mod bilateral;
 mod graph;
 mod hc;
@@ -375,89 +384,60 @@ fn unit_interval(name: &str, v: f64, open_low: bool) -> Result<(), String> {
     })
 }
 
-/// `Params { field: recipe's value, else the default's, ... }` for the named fields, each
-/// an `Option` of the same name in the recipe's [`SmoothParamsFile`].
-macro_rules! recipe_or_default {
-    ($file:expr, $params:ident { $($field:ident),* $(,)? }) => {{
-        let d = $params::default();
-        $params { $($field: $file.$field.unwrap_or(d.$field)),* }
-    }};
-}
-
-impl LaplaceParams {
-    /// Table A.2's iteration count.
-    const ITERATIONS: u32 = 22;
-
-    /// The method's parameters from the recipe, defaults filled in and checked, with its
-    /// default iteration count.
-    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
-        let p = recipe_or_default! { f, LaplaceParams { lambda, anchor, weights } };
-        // §3.2 states λ ∈ (0,1) but uses λ = 1 itself (Eq. 3.4, HC): accept (0,1].
-        unit_interval("lambda", p.lambda, true)?;
-        Ok((SmoothMethod::Laplace(p), Self::ITERATIONS))
-    }
-}
-
-impl HcParams {
-    /// Table A.2's iteration count.
-    const ITERATIONS: u32 = 8;
-
-    /// The method's parameters from the recipe, defaults filled in and checked, with its
-    /// default iteration count.
-    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
-        let p = recipe_or_default! { f, HcParams { lambda, alpha, beta, weights } };
-        unit_interval("lambda", p.lambda, true)?;
-        unit_interval("alpha", p.alpha, false)?;
-        unit_interval("beta", p.beta, false)?;
-        Ok((SmoothMethod::Hc(p), Self::ITERATIONS))
-    }
-}
-
-impl TaubinParams {
-    /// Table A.2's iteration count.
-    const ITERATIONS: u32 = 13;
-
-    /// The method's parameters from the recipe, defaults filled in and checked, with its
-    /// default iteration count.
-    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
-        let p = recipe_or_default! { f, TaubinParams { lambda, mu, count, weights } };
-        // §3.4: 0 < λ < −μ. λ ≤ 1 keeps the shrinking pass a convex blend.
-        unit_interval("lambda", p.lambda, true)?;
-        check(p.mu.is_finite() && p.mu < -p.lambda, || {
-            format!(
-                "`mu` must be negative with |mu| > lambda (0 < lambda < -mu), got lambda = {}, mu = {}",
-                p.lambda, p.mu
-            )
-        })?;
-        Ok((SmoothMethod::Taubin(p), Self::ITERATIONS))
-    }
-}
-
-impl BilateralParams {
-    /// Table A.2's iteration count.
-    const ITERATIONS: u32 = 3;
-
-    /// The method's parameters from the recipe, defaults filled in and checked, with its
-    /// default iteration count.
-    fn resolve(f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
-        let d = BilateralParams::defaults_in(f.units.unwrap_or_default());
-        let p = BilateralParams {
-            sigma_c: f.sigma_c.unwrap_or(d.sigma_c),
-            sigma_s: f.sigma_s.unwrap_or(d.sigma_s),
-            radius: f.radius.or(d.radius),
-            rings: f.rings.unwrap_or(d.rings),
-            units: d.units,
-        };
-        check((1..=MAX_RINGS).contains(&p.rings), || {
-            format!("`rings` must be in 1..={MAX_RINGS}, got {}", p.rings)
-        })?;
-        positive("sigma_c", p.sigma_c)?;
-        positive("sigma_s", p.sigma_s)?;
-        if let Some(r) = p.radius {
-            positive("radius", r)?;
+/// The method's parameters from the recipe, defaults filled in and checked, with the
+/// method's default iteration count: Table A.2's for the thesis' methods; normal-filter's
+/// follows its `strength`.
+fn resolve_method(method: MethodName, f: &SmoothParamsFile) -> Result<(SmoothMethod, u32), String> {
+    Ok(match method {
+        MethodName::Laplace => {
+            let p = recipe_or_default! { f, LaplaceParams { lambda, anchor, weights } };
+            // §3.2 states λ ∈ (0,1) but uses λ = 1 itself (Eq. 3.4, HC): accept (0,1].
+            unit_interval("lambda", p.lambda, true)?;
+            (SmoothMethod::Laplace(p), 22)
         }
-        Ok((SmoothMethod::Bilateral(p), Self::ITERATIONS))
-    }
+        MethodName::Hc => {
+            let p = recipe_or_default! { f, HcParams { lambda, alpha, beta, weights } };
+            unit_interval("lambda", p.lambda, true)?;
+            unit_interval("alpha", p.alpha, false)?;
+            unit_interval("beta", p.beta, false)?;
+            (SmoothMethod::Hc(p), 8)
+        }
+        MethodName::Taubin => {
+            let p = recipe_or_default! { f, TaubinParams { lambda, mu, count, weights } };
+            // §3.4: 0 < λ < −μ. λ ≤ 1 keeps the shrinking pass a convex blend.
+            unit_interval("lambda", p.lambda, true)?;
+            check(p.mu.is_finite() && p.mu < -p.lambda, || {
+                format!(
+                    "`mu` must be negative with |mu| > lambda (0 < lambda < -mu), got lambda = {}, mu = {}",
+                    p.lambda, p.mu
+                )
+            })?;
+            (SmoothMethod::Taubin(p), 13)
+        }
+        MethodName::Bilateral => {
+            let d = BilateralParams::defaults_in(f.units.unwrap_or_default());
+            let p = BilateralParams {
+                sigma_c: f.sigma_c.unwrap_or(d.sigma_c),
+                sigma_s: f.sigma_s.unwrap_or(d.sigma_s),
+                radius: f.radius.or(d.radius),
+                rings: f.rings.unwrap_or(d.rings),
+                units: d.units,
+            };
+            check((1..=MAX_RINGS).contains(&p.rings), || {
+                format!("`rings` must be in 1..={MAX_RINGS}, got {}", p.rings)
+            })?;
+            positive("sigma_c", p.sigma_c)?;
+            positive("sigma_s", p.sigma_s)?;
+            if let Some(r) = p.radius {
+                positive("radius", r)?;
+            }
+            (SmoothMethod::Bilateral(p), 3)
+        }
+        MethodName::NormalFilter => {
+            let (p, rounds) = normal_filter::resolve(f)?;
+            (SmoothMethod::NormalFilter(p), rounds)
+        }
+    })
 }
 
 /// Refuses `update = "in-place"` for the methods that need every vertex computed from one
@@ -495,16 +475,7 @@ impl TryFrom<SmoothParamsFile> for SmoothParams {
                 own.join(", ")
             ));
         }
-        let (smooth_method, default_iterations) = match method {
-            MethodName::Laplace => LaplaceParams::resolve(&f)?,
-            MethodName::Hc => HcParams::resolve(&f)?,
-            MethodName::Taubin => TaubinParams::resolve(&f)?,
-            MethodName::Bilateral => BilateralParams::resolve(&f)?,
-            MethodName::NormalFilter => {
-                let (p, iterations) = normal_filter::resolve(&f)?;
-                (SmoothMethod::NormalFilter(p), iterations)
-            }
-        };
+        let (smooth_method, default_iterations) = resolve_method(method, &f)?;
         let iterations = f.iterations.unwrap_or(default_iterations);
         check((1..=MAX_ITERATIONS).contains(&iterations), || {
             format!("`iterations` must be in 1..={MAX_ITERATIONS}, got {iterations}")
@@ -659,6 +630,37 @@ pub struct PassCounts {
     pub undone_updates: u64,
 }
 
+impl PassCounts {
+    /// A method that counts nothing but its passes.
+    fn plain(passes: u32) -> PassCounts {
+        PassCounts {
+            passes,
+            ..PassCounts::default()
+        }
+    }
+}
+
+impl From<bilateral::BilateralOutcome> for PassCounts {
+    fn from(o: bilateral::BilateralOutcome) -> PassCounts {
+        PassCounts {
+            passes: o.passes,
+            empty_neighbourhoods: o.empty_neighbourhoods,
+            neighbours: o.neighbours,
+            outer_ring_neighbours: o.outer_ring_neighbours,
+            undone_updates: 0,
+        }
+    }
+}
+
+impl From<normal_filter::Outcome> for PassCounts {
+    fn from(o: normal_filter::Outcome) -> PassCounts {
+        PassCounts {
+            undone_updates: o.undone,
+            ..PassCounts::plain(o.passes)
+        }
+    }
+}
+
 impl Smoother {
     pub fn new(mesh: &Mesh, params: &SmoothParams) -> Smoother {
         let topology = mesh.topology();
@@ -705,46 +707,22 @@ impl Smoother {
             "positions of another mesh"
         );
         let (graph, iterations, update) = (&self.graph, self.params.iterations, self.params.update);
-        let passes = match self.params.method {
-            SmoothMethod::Laplace(p) => laplace::run(graph, positions, &p, iterations, update),
-            SmoothMethod::Hc(p) => hc::run(graph, positions, &p, iterations),
-            SmoothMethod::Taubin(p) => taubin::run(graph, positions, &p, iterations, update),
+        let unit = self.length_unit;
+        match self.params.method {
+            SmoothMethod::Laplace(p) => {
+                PassCounts::plain(laplace::run(graph, positions, &p, iterations, update))
+            }
+            SmoothMethod::Hc(p) => PassCounts::plain(hc::run(graph, positions, &p, iterations)),
+            SmoothMethod::Taubin(p) => {
+                PassCounts::plain(taubin::run(graph, positions, &p, iterations, update))
+            }
             SmoothMethod::Bilateral(p) => {
-                let out = bilateral::run(
-                    &self.bilateral,
-                    graph,
-                    positions,
-                    &p,
-                    self.length_unit,
-                    iterations,
-                );
-                return PassCounts {
-                    passes: out.passes,
-                    empty_neighbourhoods: out.empty_neighbourhoods,
-                    neighbours: out.neighbours,
-                    outer_ring_neighbours: out.outer_ring_neighbours,
-                    ..PassCounts::default()
-                };
+                bilateral::run(&self.bilateral, graph, positions, &p, unit, iterations).into()
             }
             SmoothMethod::NormalFilter(p) => {
-                let out = normal_filter::run(
-                    &self.normal_filter,
-                    graph,
-                    positions,
-                    &p,
-                    self.length_unit,
-                    iterations,
-                );
-                return PassCounts {
-                    passes: out.passes,
-                    undone_updates: out.undone,
-                    ..PassCounts::default()
-                };
+                normal_filter::run(&self.normal_filter, graph, positions, &p, unit, iterations)
+                    .into()
             }
-        };
-        PassCounts {
-            passes,
-            ..PassCounts::default()
         }
     }
 }

@@ -85,14 +85,23 @@ pub(super) const PARAMETERS: &[&str] = &[
 /// Upper bound on the passes per round (as `MAX_ITERATIONS` for the rounds).
 const MAX_PASSES: u32 = 1000;
 
-/// Defaults, tuned on facefuns, lucy, igea and the bunny with the noise protocol
-/// (docs/smoothing.md, "normal-filter"): rounds, filter and vertex passes per round, σ_c in
-/// mean edges, σ_r in the scan's mean normal difference.
+/// Rounds when neither `iterations` nor `strength` is given.
 const DEFAULT_ROUNDS: f64 = 4.0;
-const DEFAULT_NORMAL_PASSES: u32 = 1;
-const DEFAULT_VERTEX_PASSES: u32 = 3;
-const DEFAULT_SIGMA_C: f64 = 1.0;
-const DEFAULT_SIGMA_R: f64 = 1.2;
+
+/// Defaults, tuned on facefuns, lucy, igea and the bunny with the noise protocol
+/// (docs/smoothing.md, "normal-filter"): σ_c in mean edges, σ_r in the scan's mean normal
+/// difference, one filter and three vertex passes per round.
+impl Default for NormalFilterParams {
+    fn default() -> Self {
+        NormalFilterParams {
+            variant: NormalVariant::default(),
+            sigma_c: 1.0,
+            sigma_r: 1.2,
+            normal_passes: 1,
+            vertex_passes: 3,
+        }
+    }
+}
 
 /// Largest `strength`: 10 × the default rounds, far past any useful denoising.
 const MAX_STRENGTH: f64 = 10.0;
@@ -111,12 +120,8 @@ pub(super) fn resolve(f: &SmoothParamsFile) -> Result<(NormalFilterParams, u32),
             "give `strength` or `iterations`, not both (strength sets the number of rounds)".into(),
         );
     }
-    let p = NormalFilterParams {
-        variant: f.variant.unwrap_or_default(),
-        sigma_c: f.sigma_c.unwrap_or(DEFAULT_SIGMA_C),
-        sigma_r: f.sigma_r.unwrap_or(DEFAULT_SIGMA_R),
-        normal_passes: f.normal_passes.unwrap_or(DEFAULT_NORMAL_PASSES),
-        vertex_passes: f.vertex_passes.unwrap_or(DEFAULT_VERTEX_PASSES),
+    let p = recipe_or_default! {
+        f, NormalFilterParams { variant, sigma_c, sigma_r, normal_passes, vertex_passes }
     };
     for (name, v) in [("sigma_c", p.sigma_c), ("sigma_r", p.sigma_r)] {
         if !(v.is_finite() && v > 0.0) {
