@@ -118,15 +118,16 @@ fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S, raw: &mut Raw
         if element.properties.is_empty() || element.count == 0 {
             continue;
         }
+        let at = At { path, element };
         match element.name.as_str() {
-            "vertex" => read_vertices(path, element, src, raw)?,
-            "face" => read_faces(path, element, src, raw, nv)?,
-            "tristrips" => read_strips(path, element, src, raw, nv)?,
-            "multi_texture_vertex" => read_multi_vertices(path, element, src, raw)?,
-            "multi_texture_face" => read_multi_faces(path, element, src, raw)?,
+            "vertex" => read_vertices(at, src, raw)?,
+            "face" => read_faces(at, src, raw, nv)?,
+            "tristrips" => read_strips(at, src, raw, nv)?,
+            "multi_texture_vertex" => read_multi_vertices(at, src, raw)?,
+            "multi_texture_face" => read_multi_faces(at, src, raw)?,
             _ => {
                 src.skip_all(element)
-                    .map_err(|(i, fault)| to_error(path, src, element, i, fault))?;
+                    .map_err(|(i, fault)| to_error(at, src, i, fault))?;
                 raw.skipped.push(format!(
                     "element {} ({} elements)",
                     element.name, element.count
@@ -141,14 +142,16 @@ fn read_body<S: Source>(path: &Path, header: &Header, src: &mut S, raw: &mut Raw
     Ok(())
 }
 
+/// An element being read and the file it is in: what its errors name.
+#[derive(Clone, Copy)]
+struct At<'a> {
+    path: &'a Path,
+    element: &'a Element,
+}
+
 /// Turns a source fault in element `index` into a located error.
-fn to_error<S: Source>(
-    path: &Path,
-    src: &S,
-    element: &Element,
-    index: u64,
-    fault: Fault,
-) -> MeshError {
+fn to_error<S: Source>(at: At, src: &S, index: u64, fault: Fault) -> MeshError {
+    let At { path, element } = at;
     let at = src.location(&element.name, index);
     // Binary locations already say "face 12"; ASCII ones give the line, so name the element.
     let prefix = match at {
@@ -182,18 +185,17 @@ fn to_error<S: Source>(
 
 /// Runs `body` for every element of `element`, between `begin` and `end`, with located errors.
 fn for_each<S: Source>(
-    path: &Path,
-    element: &Element,
+    at: At,
     src: &mut S,
     mut body: impl FnMut(&mut S, u64) -> Step,
 ) -> Result<()> {
-    for i in 0..element.count {
+    for i in 0..at.element.count {
         let step = src
             .begin()
             .and_then(|()| body(src, i))
             .and_then(|()| src.end());
         if let Err(fault) = step {
-            return Err(to_error(path, src, element, i, fault));
+            return Err(to_error(at, src, i, fault));
         }
     }
     Ok(())
@@ -232,7 +234,8 @@ fn index_value(value: f64, count: usize, kind: &'static str) -> Step<Index> {
     Ok(value as Index)
 }
 
-fn require_integer_list(path: &Path, element: &Element, name: &str) -> Result<(Scalar, Scalar)> {
+fn require_integer_list(at: At, name: &str) -> Result<(Scalar, Scalar)> {
+    let At { path, element } = at;
     match element.property(name).map(|(_, p)| p.kind) {
         Some(PropertyKind::List { count, item }) if item.is_integer() => Ok((count, item)),
         _ => Err(MeshError::malformed(
@@ -255,13 +258,9 @@ const ALPHA: usize = 10;
 const U: usize = 11;
 const SLOTS: usize = 13;
 
-fn read_vertices<S: Source>(
-    path: &Path,
-    element: &Element,
-    src: &mut S,
-    raw: &mut Raw,
-) -> Result<()> {
-    check_positions(path, element)?;
+fn read_vertices<S: Source>(at: At, src: &mut S, raw: &mut Raw) -> Result<()> {
+    let element = at.element;
+    check_positions(at)?;
     let layout = VertexLayout::of(element, &mut raw.skipped);
     layout.reserve(raw, capacity(src, element, &[]));
     let VertexLayout {
@@ -274,7 +273,7 @@ fn read_vertices<S: Source>(
     let mut values = [0.0f64; SLOTS];
     values[ALPHA] = 255.0;
 
-    for_each(path, element, src, |src, _| {
+    for_each(at, src, |src, _| {
         for (p, &slot) in element.properties.iter().zip(slots) {
             match p.kind {
                 PropertyKind::Scalar(ty) => values[slot] = src.value(ty)?,
@@ -306,7 +305,8 @@ fn read_vertices<S: Source>(
 }
 
 /// Refuses a vertex element without scalar `x`, `y` and `z`.
-fn check_positions(path: &Path, element: &Element) -> Result<()> {
+fn check_positions(at: At) -> Result<()> {
+    let At { path, element } = at;
     for axis in ["x", "y", "z"] {
         match element.property(axis) {
             Some((_, p)) if matches!(p.kind, PropertyKind::Scalar(_)) => {}
@@ -422,19 +422,14 @@ fn to_byte(value: f64, ty: Scalar) -> u8 {
     scaled.round().clamp(0.0, 255.0) as u8
 }
 
-fn read_faces<S: Source>(
-    path: &Path,
-    element: &Element,
-    src: &mut S,
-    raw: &mut Raw,
-    nv: usize,
-) -> Result<()> {
+fn read_faces<S: Source>(at: At, src: &mut S, raw: &mut Raw, nv: usize) -> Result<()> {
+    let element = at.element;
     let index_name = if element.property("vertex_indices").is_some() {
         "vertex_indices"
     } else {
         "vertex_index"
     };
-    require_integer_list(path, element, index_name)?;
+    require_integer_list(at, index_name)?;
     let roles = face_roles(element, index_name, &mut raw.skipped);
     let has_uvs = roles.contains(&FaceRole::Texcoords);
     let has_texnumber = roles.contains(&FaceRole::TexNumber);
@@ -444,7 +439,7 @@ fn read_faces<S: Source>(
     // Per-face texture coordinates may come before the indices: gather them here (reused).
     let mut uv_scratch: Vec<f64> = Vec::new();
 
-    for_each(path, element, src, |src, _| {
+    for_each(at, src, |src, _| {
         let first = raw.face_vertices.len();
         let mut texnumber = 0u32;
         uv_scratch.clear();
@@ -575,19 +570,14 @@ fn finite_uv(u: f64, v: f64) -> std::result::Result<DVec2, Fault> {
 /// rules drop anyway. Copies of a triangle already unrolled are therefore only counted here
 /// (`strip_repeats`, charged to the first copy's fate by [`MeshBuilder::finish`]), so that
 /// memory follows the distinct triangles, not the bytes.
-fn read_strips<S: Source>(
-    path: &Path,
-    element: &Element,
-    src: &mut S,
-    raw: &mut Raw,
-    nv: usize,
-) -> Result<()> {
-    require_integer_list(path, element, "vertex_indices")?;
+fn read_strips<S: Source>(at: At, src: &mut S, raw: &mut Raw, nv: usize) -> Result<()> {
+    let element = at.element;
+    require_integer_list(at, "vertex_indices")?;
     note_unread(raw, element, &["vertex_indices"]);
     // Sorted vertices → (index in strip_triangles, further copies).
     let mut seen: rustc_hash::FxHashMap<[Index; 3], (Index, u32)> = Default::default();
     let first = raw.strip_triangles.len();
-    for_each(path, element, src, |src, _| {
+    for_each(at, src, |src, _| {
         for p in &element.properties {
             let PropertyKind::List { count, item } = p.kind else {
                 src.skip(p.kind)?;
@@ -649,12 +639,8 @@ fn note_unread(raw: &mut Raw, element: &Element, read: &[&str]) {
     }
 }
 
-fn read_multi_vertices<S: Source>(
-    path: &Path,
-    element: &Element,
-    src: &mut S,
-    raw: &mut Raw,
-) -> Result<()> {
+fn read_multi_vertices<S: Source>(at: At, src: &mut S, raw: &mut Raw) -> Result<()> {
+    let At { path, element } = at;
     let (Some((iu, _)), Some((iv, _))) = (element.property("u"), element.property("v")) else {
         return Err(MeshError::malformed(
             path,
@@ -664,7 +650,7 @@ fn read_multi_vertices<S: Source>(
     };
     note_unread(raw, element, &["u", "v", "tx"]);
     raw.multi_uvs.reserve(capacity(src, element, &[]));
-    for_each(path, element, src, |src, _| {
+    for_each(at, src, |src, _| {
         let mut uv = DVec2::ZERO;
         for (k, p) in element.properties.iter().enumerate() {
             match p.kind {
@@ -684,16 +670,12 @@ fn read_multi_vertices<S: Source>(
     })
 }
 
-fn read_multi_faces<S: Source>(
-    path: &Path,
-    element: &Element,
-    src: &mut S,
-    raw: &mut Raw,
-) -> Result<()> {
-    require_integer_list(path, element, "texture_vertex_indices")?;
+fn read_multi_faces<S: Source>(at: At, src: &mut S, raw: &mut Raw) -> Result<()> {
+    let element = at.element;
+    require_integer_list(at, "texture_vertex_indices")?;
     note_unread(raw, element, &["tx", "tn", "texture_vertex_indices"]);
     let texture_vertices = raw.multi_uvs.len();
-    for_each(path, element, src, |src, i| {
+    for_each(at, src, |src, i| {
         let (mut tx, mut tn) = (0.0, i as f64);
         for p in &element.properties {
             match (p.name.as_str(), p.kind) {
