@@ -64,7 +64,32 @@ impl Topology {
         if corners.is_empty() || self.is_non_manifold_vertex(v) {
             return None;
         }
-        // Triangle i (the i-th corner at v) is (v, ahead[i], behind[i]) in its orientation.
+        self.fan_sides(v, corners, ahead, behind)?;
+        // (spoke vertex, triangle slot), sorted: the triangles on edge (v, spoke) are adjacent.
+        spokes.extend(
+            (0..corners.len() as u32)
+                .flat_map(|i| [(ahead[i as usize], i), (behind[i as usize], i)]),
+        );
+        spokes.sort_unstable();
+        let start = fan_start(spokes, ahead)?;
+        let fan = Fan {
+            corners,
+            ahead,
+            behind,
+            spokes,
+        };
+        fan.walk(start, vertices, triangles)
+    }
+
+    /// Triangle i (the i-th corner at `v`) is (v, `ahead[i]`, `behind[i]`) in its
+    /// orientation; `None` where a triangle repeats a vertex.
+    fn fan_sides(
+        &self,
+        v: u32,
+        corners: &[u32],
+        ahead: &mut Vec<u32>,
+        behind: &mut Vec<u32>,
+    ) -> Option<()> {
         for &c in corners {
             let (a, b) = (
                 self.corner_vertex(next_corner(c)),
@@ -76,37 +101,59 @@ impl Topology {
             ahead.push(a);
             behind.push(b);
         }
-        // (spoke vertex, triangle slot), sorted: the triangles on edge (v, spoke) are adjacent.
-        spokes.extend(
-            (0..corners.len() as u32)
-                .flat_map(|i| [(ahead[i as usize], i), (behind[i as usize], i)]),
-        );
-        spokes.sort_unstable();
-        let spokes = &*spokes;
-        let on_spoke = |s: u32| {
-            let start = spokes.partition_point(|&(x, _)| x < s);
-            let end = spokes.partition_point(|&(x, _)| x <= s);
-            &spokes[start..end]
-        };
+        Some(())
+    }
+}
 
-        // An open fan starts at a spoke with one triangle, preferably one its triangle
-        // leaves v along (so the walk is counter-clockwise); a closed fan at triangle 0.
-        let mut boundary_spokes = spokes
-            .chunk_by(|x, y| x.0 == y.0)
-            .filter(|run| run.len() == 1)
-            .map(|run| run[0]);
-        let (first_spoke, first_slot) = match boundary_spokes.next() {
-            None => (ahead[0], 0),
-            Some(one) => {
-                let other = boundary_spokes.next()?;
-                if ahead[one.1 as usize] != one.0 && ahead[other.1 as usize] == other.0 {
-                    other
-                } else {
-                    one
-                }
+/// Where the walk around a fan starts, as (spoke, triangle slot): an open fan at a spoke
+/// with one triangle, preferably one its triangle leaves v along (so the walk is
+/// counter-clockwise); a closed fan at triangle 0. `None` where an open fan has only one
+/// such spoke.
+fn fan_start(spokes: &[(u32, u32)], ahead: &[u32]) -> Option<(u32, u32)> {
+    let mut boundary_spokes = spokes
+        .chunk_by(|x, y| x.0 == y.0)
+        .filter(|run| run.len() == 1)
+        .map(|run| run[0]);
+    Some(match boundary_spokes.next() {
+        None => (ahead[0], 0),
+        Some(one) => {
+            let other = boundary_spokes.next()?;
+            if ahead[one.1 as usize] != one.0 && ahead[other.1 as usize] == other.0 {
+                other
+            } else {
+                one
             }
-        };
+        }
+    })
+}
 
+/// The triangles around one vertex, as [`Topology::ordered_ring_into`] gathers them.
+struct Fan<'a> {
+    corners: &'a [u32],
+    ahead: &'a [u32],
+    behind: &'a [u32],
+    /// (spoke vertex, triangle slot), sorted.
+    spokes: &'a [(u32, u32)],
+}
+
+impl Fan<'_> {
+    /// The triangle slots on edge (v, `s`).
+    fn on_spoke(&self, s: u32) -> &[(u32, u32)] {
+        let start = self.spokes.partition_point(|&(x, _)| x < s);
+        let end = self.spokes.partition_point(|&(x, _)| x <= s);
+        &self.spokes[start..end]
+    }
+
+    /// Walks from `start` across each triangle to the next one on the far spoke, until an
+    /// open fan's other border spoke or back at the start; returns whether the fan is
+    /// closed, `None` where the walk missed a triangle (more than one fan).
+    fn walk(
+        &self,
+        (first_spoke, first_slot): (u32, u32),
+        vertices: &mut Vec<u32>,
+        triangles: &mut Vec<u32>,
+    ) -> Option<bool> {
+        let (corners, ahead, behind) = (self.corners, self.ahead, self.behind);
         vertices.push(first_spoke);
         triangles.push(corners[first_slot as usize] / 3);
         let (mut slot, mut spoke) = (first_slot, first_spoke);
@@ -118,7 +165,8 @@ impl Topology {
                 ahead[i]
             };
             vertices.push(spoke);
-            let Some(&(_, next_slot)) = on_spoke(spoke).iter().find(|&&(_, j)| j != slot) else {
+            let Some(&(_, next_slot)) = self.on_spoke(spoke).iter().find(|&&(_, j)| j != slot)
+            else {
                 break; // open fan: reached the other boundary spoke
             };
             if next_slot == first_slot {

@@ -319,36 +319,8 @@ pub struct HalvesReport {
 /// Decimates `mesh` in halves, then as a whole (see the module comment). `None` when the
 /// cut could not be stitched exactly; the caller then decimates in one pass.
 pub fn run(mesh: &Mesh, params: &DecimateParams, target: usize) -> Option<(Mesh, DecimateReport)> {
-    let n = mesh.triangles.len();
-    let (lo, hi) = mesh.bounding_box()?;
-    let axis = (hi - lo).max_position();
-    let centroid = |t: usize| {
-        let [a, b, c] = mesh.triangle_positions(t);
-        (a[axis] + b[axis] + c[axis]) / 3.0
-    };
-    let mut order: Vec<(f64, u32)> = (0..n).map(|t| (centroid(t), t as u32)).collect();
-    order.select_nth_unstable_by(n / 2, |x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-    let mut first_half = vec![false; n];
-    for &(_, t) in &order[..n / 2] {
-        first_half[t as usize] = true;
-    }
-    drop(order);
-    let mut used_by = vec![0u8; mesh.positions.len()];
-    for t in 0..n {
-        let bit = if first_half[t] { 1 } else { 2 };
-        for v in mesh.triangle_vertices(t) {
-            used_by[v as usize] |= bit;
-        }
-    }
-    let cut: FxHashMap<PositionKey, ()> = (0..mesh.positions.len())
-        .filter(|&v| used_by[v] == 3)
-        .map(|v| (key(mesh.positions[v]), ()))
-        .collect();
-    if cut.len() != used_by.iter().filter(|&&u| u == 3).count() {
-        return None; // Two cut vertices at one position: they could not be told apart.
-    }
-    drop(used_by);
-
+    let first_half = split(mesh)?;
+    let cut = cut_positions(mesh, &first_half)?;
     let stage = (target as f64 * STAGE_FACTOR).round() as usize;
     let half_params = |share: usize| DecimateParams {
         target_faces: Some(share),
@@ -384,6 +356,52 @@ pub fn run(mesh: &Mesh, params: &DecimateParams, target: usize) -> Option<(Mesh,
     for o in &mut out.triangle_origins {
         *o = mesh.triangle_origin(*o as usize);
     }
+    add_halves(&mut report, [(&ra, sa), (&rb, sb)], cut.len());
+    report.halves = Some(halves);
+    Some((out, report))
+}
+
+/// Which triangles are in the first half: those whose centroid is below the median along
+/// the longest side of the bounding box (ties by index).
+fn split(mesh: &Mesh) -> Option<Vec<bool>> {
+    let n = mesh.triangles.len();
+    let (lo, hi) = mesh.bounding_box()?;
+    let axis = (hi - lo).max_position();
+    let centroid = |t: usize| {
+        let [a, b, c] = mesh.triangle_positions(t);
+        (a[axis] + b[axis] + c[axis]) / 3.0
+    };
+    let mut order: Vec<(f64, u32)> = (0..n).map(|t| (centroid(t), t as u32)).collect();
+    order.select_nth_unstable_by(n / 2, |x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    let mut first_half = vec![false; n];
+    for &(_, t) in &order[..n / 2] {
+        first_half[t as usize] = true;
+    }
+    Some(first_half)
+}
+
+/// The positions of the vertices both halves use, or `None` when two of them share a
+/// position (the stitch could not tell them apart).
+fn cut_positions(mesh: &Mesh, first_half: &[bool]) -> Option<FxHashMap<PositionKey, ()>> {
+    let mut used_by = vec![0u8; mesh.positions.len()];
+    for (t, &first) in first_half.iter().enumerate() {
+        let bit = if first { 1 } else { 2 };
+        for v in mesh.triangle_vertices(t) {
+            used_by[v as usize] |= bit;
+        }
+    }
+    let cut: FxHashMap<PositionKey, ()> = (0..mesh.positions.len())
+        .filter(|&v| used_by[v] == 3)
+        .map(|v| (key(mesh.positions[v]), ()))
+        .collect();
+    (cut.len() == used_by.iter().filter(|&&u| u == 3).count()).then_some(cut)
+}
+
+/// Adds the halves' counts to the whole's `report`: their collapses, evaluations and
+/// refusals, the largest error (each half's scaled to the whole's diagonal), and the vertex
+/// classes as the halves saw them (the `cut` vertices counted once, as fixed).
+fn add_halves(report: &mut DecimateReport, halves: [(&DecimateReport, f64); 2], cut: usize) {
+    let [(ra, sa), (rb, sb)] = halves;
     report.collapses += ra.collapses + rb.collapses;
     report.evaluations += ra.evaluations + rb.evaluations;
     report.ill_conditioned += ra.ill_conditioned + rb.ill_conditioned;
@@ -393,13 +411,10 @@ pub fn run(mesh: &Mesh, params: &DecimateParams, target: usize) -> Option<(Mesh,
         .error_reached
         .max(ra.error_reached * sa)
         .max(rb.error_reached * sb);
-    // Vertex classes as the halves saw them (the cut counted once, as fixed).
     report.interior_vertices = ra.interior_vertices + rb.interior_vertices;
     report.border_vertices = ra.border_vertices + rb.border_vertices;
     report.seam_vertices = ra.seam_vertices + rb.seam_vertices;
-    report.fixed_vertices = (ra.fixed_vertices + rb.fixed_vertices).saturating_sub(cut.len());
-    report.halves = Some(halves);
-    Some((out, report))
+    report.fixed_vertices = (ra.fixed_vertices + rb.fixed_vertices).saturating_sub(cut);
 }
 
 #[cfg(test)]

@@ -118,47 +118,21 @@ pub fn fair_boundary_curve(
     if movable == 0 {
         return RunStats::default();
     }
-    let mut buf = Vec::new();
-    let mut nbuf = Vec::new();
-    let (area0, perimeter0) = (
-        enclosed_area(&pts),
-        scale * if curve.closed { n } else { n - 1 } as f64,
-    );
-    let max_area_change = HOLE_TOLERANCE * perimeter0 * perimeter0;
-    let max_perimeter = (1.0 + HOLE_TOLERANCE) * perimeter0;
+    let mut fans = FanReader {
+        nb,
+        references,
+        ring: Vec::new(),
+        fan_references: Vec::new(),
+    };
+    let hole = HoleLimits::new(&pts, scale, curve.closed);
     schedule::run(params, scale, |phase| {
         let before = pts.clone();
         let candidates = match phase {
             Phase::Curvature => curve::curvature_sweep(&pts, shape, params.lambda, eps),
             Phase::Nonuniformity => curve::nonuniformity_sweep(&pts, shape, params.lambda_u),
         };
-        let (mut sum, mut max) = (0.0, 0.0f64);
-        for (i, candidate) in candidates.into_iter().enumerate() {
-            let v = curve.vertices[i] as usize;
-            let old = positions[v];
-            if candidate == old {
-                continue;
-            }
-            buf.clear();
-            buf.extend(nb.ring(v).iter().map(|&j| positions[j as usize]));
-            nbuf.clear();
-            nbuf.extend(nb.fan(v).iter().map(|&t| references[t as usize]));
-            let fan = Fan {
-                ring: &buf,
-                closed: nb.is_closed(v),
-                references: &nbuf,
-            };
-            let (p, g) = guarded_move(old, candidate, fan);
-            guards.record(g);
-            positions[v] = p;
-            pts[i] = p;
-            let d = (p - old).length();
-            sum += d;
-            max = max.max(d);
-        }
-        let halt = curve.closed
-            && ((enclosed_area(&pts) - area0).abs() > max_area_change
-                || perimeter(&pts) > max_perimeter);
+        let (sum, max) = write_guarded(positions, &mut pts, candidates, curve, &mut fans, guards);
+        let halt = curve.closed && hole.exceeded(&pts);
         if halt {
             for (i, p) in before.iter().enumerate() {
                 positions[curve.vertices[i] as usize] = *p;
@@ -172,6 +146,86 @@ pub fn fair_boundary_curve(
             halt,
         }
     })
+}
+
+/// How far one step may let a closed curve move ([`HOLE_TOLERANCE`]): its enclosed area
+/// and its perimeter as they were at the start of the step.
+struct HoleLimits {
+    area0: f64,
+    max_area_change: f64,
+    max_perimeter: f64,
+}
+
+impl HoleLimits {
+    /// The limits of the curve `pts` whose mean edge is `scale`.
+    fn new(pts: &[DVec3], scale: f64, closed: bool) -> HoleLimits {
+        let n = pts.len();
+        let perimeter0 = scale * if closed { n } else { n - 1 } as f64;
+        HoleLimits {
+            area0: enclosed_area(pts),
+            max_area_change: HOLE_TOLERANCE * perimeter0 * perimeter0,
+            max_perimeter: (1.0 + HOLE_TOLERANCE) * perimeter0,
+        }
+    }
+
+    /// Whether the curve at `pts` went past the limits.
+    fn exceeded(&self, pts: &[DVec3]) -> bool {
+        (enclosed_area(pts) - self.area0).abs() > self.max_area_change
+            || perimeter(pts) > self.max_perimeter
+    }
+}
+
+/// Each vertex's fan as the positions are now, in reused buffers.
+struct FanReader<'a> {
+    nb: &'a Neighbourhood,
+    references: &'a [Reference],
+    ring: Vec<DVec3>,
+    fan_references: Vec<Reference>,
+}
+
+impl FanReader<'_> {
+    fn fan(&mut self, positions: &[DVec3], v: usize) -> Fan<'_> {
+        self.ring.clear();
+        self.ring
+            .extend(self.nb.ring(v).iter().map(|&j| positions[j as usize]));
+        self.fan_references.clear();
+        self.fan_references
+            .extend(self.nb.fan(v).iter().map(|&t| self.references[t as usize]));
+        Fan {
+            ring: &self.ring,
+            closed: self.nb.is_closed(v),
+            references: &self.fan_references,
+        }
+    }
+}
+
+/// Writes one sweep's `candidates` for the curve's vertices one by one, each checked
+/// against its fan as it is at that moment (so in vertex order); returns the sum and the
+/// largest of the moves.
+fn write_guarded(
+    positions: &mut [DVec3],
+    pts: &mut [DVec3],
+    candidates: Vec<DVec3>,
+    curve: &BoundaryCurve,
+    fans: &mut FanReader,
+    guards: &mut GuardCounts,
+) -> (f64, f64) {
+    let (mut sum, mut max) = (0.0, 0.0f64);
+    for (i, candidate) in candidates.into_iter().enumerate() {
+        let v = curve.vertices[i] as usize;
+        let old = positions[v];
+        if candidate == old {
+            continue;
+        }
+        let (p, g) = guarded_move(old, candidate, fans.fan(positions, v));
+        guards.record(g);
+        positions[v] = p;
+        pts[i] = p;
+        let d = (p - old).length();
+        sum += d;
+        max = max.max(d);
+    }
+    (sum, max)
 }
 
 #[cfg(test)]

@@ -651,7 +651,36 @@ fn commit_parallel(
     level.resize(n, 0);
     why.clear();
     why.resize(n, MoveCheck::Ok);
-    let old: &[DVec3] = positions;
+    shorten_bad_moves(positions, candidate, new, level, why, it);
+    for (l, w) in level.iter().zip(why.iter()) {
+        match *l {
+            0 => {}
+            1 | 2 => guards.record(Guarded::Shortened(*w)),
+            _ => guards.record(Guarded::Skipped(*w)),
+        }
+    }
+    let (sum, max) = move_lengths(new, positions);
+    positions.copy_from_slice(new);
+    Sweep {
+        mean: sum / it.movable_count.max(1) as f64,
+        max,
+        updates: it.movable_count,
+        halt: false,
+    }
+}
+
+/// The passes of [`commit_parallel`]: while a triangle is bad, each moved vertex of a bad
+/// triangle goes one `level` back (half, a quarter of its `candidate` move, then none),
+/// `why` keeps the first reason, and only the triangles around those vertices are checked
+/// again.
+fn shorten_bad_moves(
+    old: &[DVec3],
+    candidate: &[DVec3],
+    new: &mut [DVec3],
+    level: &mut [u8],
+    why: &mut [MoveCheck],
+    it: &Interior,
+) {
     let all = (0..it.triangles.len() as u32).into_par_iter();
     let mut bad = bad_triangles(old, new, all, it);
     let mut touched: Vec<u32> = Vec::new();
@@ -690,16 +719,14 @@ fn commit_parallel(
         around.dedup();
         bad = bad_triangles(old, new, around.into_par_iter(), it);
     }
-    for (l, w) in level.iter().zip(why.iter()) {
-        match *l {
-            0 => {}
-            1 | 2 => guards.record(Guarded::Shortened(*w)),
-            _ => guards.record(Guarded::Skipped(*w)),
-        }
-    }
+}
+
+/// The sum and the largest of the distances from `old` to `new`, in fixed-size chunks
+/// summed in order, so the result does not depend on threads.
+fn move_lengths(new: &[DVec3], old: &[DVec3]) -> (f64, f64) {
     let partial: Vec<(f64, f64)> = new
         .par_chunks(CHUNK)
-        .zip(positions.par_chunks(CHUNK))
+        .zip(old.par_chunks(CHUNK))
         .map(|(n, o)| {
             n.iter().zip(o).fold((0.0, 0.0f64), |(s, m), (p, q)| {
                 let d = (*p - *q).length();
@@ -707,16 +734,9 @@ fn commit_parallel(
             })
         })
         .collect();
-    let (sum, max) = partial
+    partial
         .into_iter()
-        .fold((0.0, 0.0f64), |(s, m), (a, b)| (s + a, m.max(b)));
-    positions.copy_from_slice(new);
-    Sweep {
-        mean: sum / it.movable_count.max(1) as f64,
-        max,
-        updates: it.movable_count,
-        halt: false,
-    }
+        .fold((0.0, 0.0f64), |(s, m), (a, b)| (s + a, m.max(b)))
 }
 
 #[cfg(test)]

@@ -675,39 +675,26 @@ pub(super) fn run(
     let mut faces = Vec::with_capacity(plan.triangles.len());
     let mut normals = vec![Vec3A::ZERO; n];
     let mut next = vec![DVec3::ZERO; n];
-    let isa = Isa::detect();
     // Each pass reads one working copy and writes the next beside the new positions, so
     // that the conversion needs no pass of its own.
     local.update(positions, centre);
     let mut following = WorkingCopy::new(n);
+    let pass = Pass {
+        graph,
+        rings,
+        kernel,
+        isa: Isa::detect(),
+        centre,
+    };
     for _ in 0..iterations {
         vertex_normals(plan, &local.x, &mut faces, &mut normals);
-        let (x, xl) = (&*positions, &*local.x);
+        let (x, xl, normals) = (&*positions, &*local.x, &*normals);
         let (empty, inside, outer): (u64, u64, u64) = next
             .par_chunks_mut(CHUNK)
             .zip(following.x[..n].par_chunks_mut(CHUNK))
             .enumerate()
             .map(|(chunk, (out, out_local))| {
-                let (mut empty, mut inside, mut outer) = (0u64, 0u64, 0u64);
-                for (k, (p, l)) in out.iter_mut().zip(out_local).enumerate() {
-                    let i = chunk * CHUNK + k;
-                    *p = x[i];
-                    let n = normals[i];
-                    if graph.moves(i) {
-                        let sums = (n != Vec3A::ZERO)
-                            .then(|| isa.denoise_vertex(xl, xl[i], n, rings.of(i), kernel));
-                        if let Some(sums) = &sums {
-                            inside += u64::from(sums.inside);
-                            outer += u64::from(sums.outer);
-                        }
-                        match sums.and_then(|sums| sums.moved(n)) {
-                            Some(moved) => *p += moved.as_dvec3(),
-                            None => empty += 1,
-                        }
-                    }
-                    *l = WorkingCopy::point(*p, centre);
-                }
-                (empty, inside, outer)
+                pass.denoise_chunk(x, xl, normals, chunk * CHUNK, out, out_local)
             })
             .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
         outcome.empty_neighbourhoods += empty;
@@ -717,6 +704,54 @@ pub(super) fn run(
         std::mem::swap(&mut local, &mut following);
     }
     outcome
+}
+
+/// What every vertex update of one pass shares.
+struct Pass<'a> {
+    graph: &'a SmoothGraph,
+    rings: &'a Rings,
+    kernel: Kernel,
+    isa: Isa,
+    centre: DVec3,
+}
+
+impl Pass<'_> {
+    /// Denoises the vertices from `start` on into `out` (positions) and `out_local` (the
+    /// next working copy), reading `x` (positions), `xl` (the working copy) and `normals`;
+    /// returns the vertices with no neighbourhood, the neighbours used, and how many of
+    /// them came from the outermost ring.
+    fn denoise_chunk(
+        &self,
+        x: &[DVec3],
+        xl: &[Vec4],
+        normals: &[Vec3A],
+        start: usize,
+        out: &mut [DVec3],
+        out_local: &mut [Vec4],
+    ) -> (u64, u64, u64) {
+        let (mut empty, mut inside, mut outer) = (0u64, 0u64, 0u64);
+        for (k, (p, l)) in out.iter_mut().zip(out_local).enumerate() {
+            let i = start + k;
+            *p = x[i];
+            let n = normals[i];
+            if self.graph.moves(i) {
+                let sums = (n != Vec3A::ZERO).then(|| {
+                    self.isa
+                        .denoise_vertex(xl, xl[i], n, self.rings.of(i), self.kernel)
+                });
+                if let Some(sums) = &sums {
+                    inside += u64::from(sums.inside);
+                    outer += u64::from(sums.outer);
+                }
+                match sums.and_then(|sums| sums.moved(n)) {
+                    Some(moved) => *p += moved.as_dvec3(),
+                    None => empty += 1,
+                }
+            }
+            *l = WorkingCopy::point(*p, self.centre);
+        }
+        (empty, inside, outer)
+    }
 }
 
 #[cfg(test)]
