@@ -89,6 +89,21 @@ impl StoreError {
     }
 }
 
+/// Whether job `id`, found in `state` (`None`: no such job), may be put back in the queue
+/// by hand, on either backend: any state but running, whose attempt still holds the job.
+/// Gives the state the job leaves, for the caller to report.
+fn requeueable(id: i64, state: Option<String>) -> Result<String> {
+    let state = state.ok_or(StoreError::NoSuchJob(id))?;
+    if state == "running" {
+        return Err(StoreError::WrongState {
+            id,
+            state,
+            message: "wait for it to finish".into(),
+        });
+    }
+    Ok(state)
+}
+
 /// Unix time in milliseconds.
 pub fn now_ms() -> i64 {
     std::time::SystemTime::now()
@@ -666,20 +681,11 @@ impl Store {
         let path = self.path.clone();
         let sq = sqlite_error(&path);
         let tx = self.immediate()?;
-        let state: Option<String> = tx
+        let state = tx
             .query_row("SELECT state FROM job WHERE id=?1", [id], |r| r.get(0))
             .optional()
             .map_err(sq)?;
-        let Some(state) = state else {
-            return Err(StoreError::NoSuchJob(id));
-        };
-        if state == "running" {
-            return Err(StoreError::WrongState {
-                id,
-                state,
-                message: "wait for it to finish".into(),
-            });
-        }
+        let state = requeueable(id, state)?;
         tx.execute(
             "UPDATE job SET state='queued', retryable=0, attempts=0, generation=generation+1,
                 run_after=?2, updated_at=?2, error_kind=NULL, error=NULL WHERE id=?1",

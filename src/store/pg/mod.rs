@@ -29,7 +29,7 @@ pub use finish::{Fence, Fenced};
 
 use super::{
     ClaimedJob, Enqueued, FailureKind, FinalState, Finish, InputMember, InputRole, JobOrder,
-    KnownSet, NewJob, Owner, RelPath, Result, RetryPolicy, StoreError, now_ms,
+    KnownSet, NewJob, Owner, RelPath, Result, RetryPolicy, StoreError, now_ms, requeueable,
 };
 use postgres::{Client, GenericClient, NoTls};
 use std::time::{Duration, Instant};
@@ -468,24 +468,18 @@ impl PgStore {
     pub fn requeue(&mut self, id: i64) -> Result<String> {
         let now = now_ms();
         self.with_tx(|tx| {
-            let Some(row) = tx.query_opt("SELECT state FROM job WHERE id=$1 FOR UPDATE", &[&id])?
-            else {
-                return Ok(Err(StoreError::NoSuchJob(id)));
-            };
-            let state: String = row.get(0);
-            if state == "running" {
-                return Ok(Err(StoreError::WrongState {
-                    id,
-                    state,
-                    message: "wait for it to finish".into(),
-                }));
+            let state = tx
+                .query_opt("SELECT state FROM job WHERE id=$1 FOR UPDATE", &[&id])?
+                .map(|row| row.get(0));
+            let checked = requeueable(id, state);
+            if checked.is_ok() {
+                tx.execute(
+                    "UPDATE job SET state='queued', retryable=0, attempts=0, generation=generation+1,
+                        run_after=$2, updated_at=$2, error_kind=NULL, error=NULL WHERE id=$1",
+                    &[&id, &now],
+                )?;
             }
-            tx.execute(
-                "UPDATE job SET state='queued', retryable=0, attempts=0, generation=generation+1,
-                    run_after=$2, updated_at=$2, error_kind=NULL, error=NULL WHERE id=$1",
-                &[&id, &now],
-            )?;
-            Ok(Ok(state))
+            Ok(checked)
         })?
     }
 
