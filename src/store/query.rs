@@ -197,9 +197,7 @@ impl Store {
             let Some(id) = row.id else { continue };
             let paths = stmt.query_map([id], |r| r.get::<_, String>(0))?;
             for path in paths {
-                let path = path?;
-                let name = path.rsplit('/').next().unwrap_or(&path);
-                row.outputs.push(escape_str(name));
+                row.outputs.push(output_name(&path?));
             }
         }
         Ok(())
@@ -230,45 +228,39 @@ impl Store {
             let attempt_id = attempt["id"].as_i64().unwrap_or(0);
             attempt["steps"] = Value::Array(self.step_timings(attempt_id)?);
         }
-        escape_row(&mut job);
-        job["inputs"] = escaped(inputs);
-        job["outputs"] = escaped(outputs);
-        job["attempts_log"] = escaped(attempts);
-        job["sightings"] = escaped(sightings);
+        job["inputs"] = Value::Array(inputs);
+        job["outputs"] = Value::Array(outputs);
+        job["attempts_log"] = Value::Array(attempts);
+        job["sightings"] = Value::Array(sightings);
         Ok(job)
     }
 
-    /// The job's own row, every column by name (`_json` columns parsed, times as ISO text).
+    /// The job's own row, every column by name, as [`shown_row`] prints it.
     fn job_json(&self, id: i64) -> Result<Value> {
         self.conn
             .query_row("SELECT * FROM job WHERE id=?1", [id], |r| {
-                let mut map = serde_json::Map::new();
                 let stmt = r.as_ref();
-                for i in 0..stmt.column_count() {
-                    let name = stmt.column_name(i)?.to_string();
-                    let value = job_column_value(&name, sql_value(r.get_ref(i)?));
-                    map.insert(name.trim_end_matches("_json").to_string(), value);
-                }
-                Ok(Value::Object(map))
+                let columns = (0..stmt.column_count())
+                    .map(|i| Ok((stmt.column_name(i)?.to_string(), sql_value(r.get_ref(i)?))))
+                    .collect::<rusqlite::Result<Vec<_>>>()?;
+                Ok(shown_row(columns))
             })
             .optional()
             .map_err(self.sqlite_err())?
             .ok_or(StoreError::NoSuchJob(id))
     }
 
-    /// The rows of `sql` (one `?1`, the job or attempt id) as JSON objects by column name.
+    /// The rows of `sql` (one `?1`, the job or attempt id) as [`shown_row`] prints them.
     fn child_rows(&self, sql: &str, id: i64) -> Result<Vec<Value>> {
         let err = self.sqlite_err();
         let mut stmt = self.conn.prepare(sql).map_err(&err)?;
         let names: Vec<String> = stmt.column_names().iter().map(|s| s.to_string()).collect();
         let rows = stmt
             .query_map([id], |r| {
-                let mut map = serde_json::Map::new();
-                for (i, name) in names.iter().enumerate() {
-                    let value = child_column_value(name, sql_value(r.get_ref(i)?));
-                    map.insert(name.trim_end_matches("_json").to_string(), value);
-                }
-                Ok(Value::Object(map))
+                let columns = (names.iter().enumerate())
+                    .map(|(i, name)| Ok((name.clone(), sql_value(r.get_ref(i)?))))
+                    .collect::<rusqlite::Result<Vec<_>>>()?;
+                Ok(shown_row(columns))
             })
             .map_err(&err)?;
         rows.collect::<rusqlite::Result<Vec<_>>>().map_err(err)
@@ -335,36 +327,31 @@ fn job_history_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<HistoryRow> {
     })
 }
 
-/// A column of the job's row as shown: the report and recipe parsed, times as ISO text.
-fn job_column_value(name: &str, value: Value) -> Value {
-    match (name, &value) {
-        ("report_json" | "recipe_json", Value::String(s)) => {
-            serde_json::from_str(s).unwrap_or(value)
-        }
-        (n, Value::Number(ms)) if n.ends_with("_at") || n == "run_after" => {
-            json!(iso_time(ms.as_i64().unwrap_or(0)))
-        }
-        _ => value,
+/// One row of `show` (the job, or a row of a table about it) as printed, by both backends:
+/// `*_at` and `run_after` times as ISO text, `*_json` texts parsed and the suffix dropped,
+/// input-derived fields made printable ([`escape_row`]).
+pub(crate) fn shown_row(columns: impl IntoIterator<Item = (String, Value)>) -> Value {
+    let mut map = serde_json::Map::new();
+    for (name, value) in columns {
+        let value = match (&value, name.as_str()) {
+            (Value::Number(ms), n) if n.ends_with("_at") || n == "run_after" => {
+                json!(iso_time(ms.as_i64().unwrap_or(0)))
+            }
+            (Value::String(s), n) if n.ends_with("_json") => {
+                serde_json::from_str(s).unwrap_or(value)
+            }
+            _ => value,
+        };
+        map.insert(name.trim_end_matches("_json").to_string(), value);
     }
+    let mut row = Value::Object(map);
+    escape_row(&mut row);
+    row
 }
 
-/// A column of a child table's row as shown: `_at` times as ISO text, `_json` parsed.
-fn child_column_value(name: &str, mut value: Value) -> Value {
-    if let (true, Value::Number(ms)) = (name.ends_with("_at"), &value) {
-        value = json!(iso_time(ms.as_i64().unwrap_or(0)));
-    }
-    if name.ends_with("_json")
-        && let Value::String(s) = &value
-    {
-        value = serde_json::from_str(s).unwrap_or(value);
-    }
-    value
-}
-
-/// Rows made printable, as a JSON array.
-fn escaped(mut rows: Vec<Value>) -> Value {
-    rows.iter_mut().for_each(escape_row);
-    Value::Array(rows)
+/// An output file as `history` lists it: its name, escaped.
+pub(crate) fn output_name(path: &str) -> String {
+    escape_str(path.rsplit('/').next().unwrap_or(path))
 }
 
 /// `root/rel_path` as shown: escaped, any bytes.

@@ -194,6 +194,15 @@ const JOB_COLUMNS: &str = "id, state, root, rel_path, created_at, finished_at, i
     CASE WHEN json_valid(report_json) THEN json_extract(report_json, '$.metrics.distance.rms') END,
     process_ms, preview IS NOT NULL, error_kind, error";
 
+/// A job's `show` as the dashboard's job page takes it: `None` for an id with no job.
+pub(crate) fn found(shown: Result<Value>) -> Result<Option<Value>> {
+    match shown {
+        Ok(v) => Ok(Some(v)),
+        Err(StoreError::NoSuchJob(_)) => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
 /// The page of `rows`, fetched in the cursor's order (`ORDER BY id DESC`, or `ASC` after
 /// `Cursor::After`) with one row more than `q.limit` when there is a further page.
 pub(crate) fn page_of(mut rows: Vec<JobRow>, q: &JobQuery) -> JobPage {
@@ -315,11 +324,7 @@ impl DashboardReader for SqliteReader {
     }
 
     fn job(&self, id: i64) -> Result<Option<Value>> {
-        match self.store.show(id) {
-            Ok(v) => Ok(Some(v)),
-            Err(StoreError::NoSuchJob(_)) => Ok(None),
-            Err(e) => Err(e),
-        }
+        found(self.store.show(id))
     }
 
     fn preview(&self, id: i64) -> Result<Option<(PathBuf, PathBuf)>> {

@@ -6,7 +6,7 @@ use super::{DbError, PgStore};
 use crate::store::{RelPath, StoreError};
 use crate::web::reader::{
     Cursor, DashboardReader, Figures, JobPage, JobQuery, JobRow, LastError, TimeHistogram,
-    TrendDay, contains_pattern, page_of,
+    TrendDay, contains_pattern, found, page_of,
 };
 use postgres::types::ToSql;
 use serde_json::Value;
@@ -136,11 +136,7 @@ impl DashboardReader for PgReader {
     }
 
     fn job(&self, id: i64) -> Result<Option<Value>> {
-        match self.store().show(id) {
-            Ok(v) => Ok(Some(v)),
-            Err(StoreError::NoSuchJob(_)) => Ok(None),
-            Err(e) => Err(e),
-        }
+        found(self.store().show(id))
     }
 
     fn preview(&self, id: i64) -> Result<Option<(PathBuf, PathBuf)>> {

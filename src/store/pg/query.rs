@@ -2,10 +2,12 @@
 //! store's (`store::query`), read with `to_jsonb` and shaped by the same rules.
 
 use super::PgStore;
-use crate::store::query::{HistoryFilter, HistoryRow, escape_row, input_display, iso_time};
+use crate::store::query::{
+    HistoryFilter, HistoryRow, input_display, iso_time, output_name, shown_row,
+};
 use crate::store::{RelPath, Result};
 use crate::text::{MAX_SHOWN, bounded, escape_str};
-use serde_json::{Value, json};
+use serde_json::Value;
 
 /// SQLite's GLOB (`*` any run, `?` one character, `[...]` a class, `[^...]` its
 /// complement; case-sensitive) as an anchored PostgreSQL regular expression, so that
@@ -117,7 +119,7 @@ impl PgStore {
                 outputs: r
                     .get::<_, Vec<String>>(14)
                     .iter()
-                    .map(|p| escape_str(p.rsplit('/').next().unwrap_or(p)))
+                    .map(|p| output_name(p))
                     .collect(),
                 error_kind: r.get(11),
                 error: r
@@ -161,22 +163,13 @@ impl PgStore {
         let Some(Some(job)) = values.next() else {
             return Err(crate::store::StoreError::NoSuchJob(id));
         };
-        let mut job = shape(job, true);
-        escape_row(&mut job);
+        let mut job = shape(job);
         for name in ["inputs", "outputs", "sightings", "attempts_log"] {
             let rows = match values.next().flatten() {
                 Some(Value::Array(rows)) => rows,
                 _ => Vec::new(),
             };
-            let rows = rows
-                .into_iter()
-                .map(|r| {
-                    let mut r = shape(r, false);
-                    escape_row(&mut r);
-                    r
-                })
-                .collect();
-            job[name] = Value::Array(rows);
+            job[name] = Value::Array(rows.into_iter().map(shape).collect());
         }
         Ok(job)
     }
@@ -190,24 +183,12 @@ fn shown_input(root: String, stored: String) -> String {
     }
 }
 
-/// One row as `show` prints it: times as ISO text, `*_json` texts parsed and the suffix
-/// dropped (the rules of `Store::show`).
-fn shape(row: Value, is_job: bool) -> Value {
-    let Value::Object(map) = row else { return row };
-    let mut out = serde_json::Map::new();
-    for (name, value) in map {
-        let value = match (&value, name.as_str()) {
-            (Value::Number(ms), n) if n.ends_with("_at") || (is_job && n == "run_after") => {
-                json!(iso_time(ms.as_i64().unwrap_or(0)))
-            }
-            (Value::String(s), n) if n.ends_with("_json") => {
-                serde_json::from_str(s).unwrap_or(value)
-            }
-            _ => value,
-        };
-        out.insert(name.trim_end_matches("_json").to_string(), value);
+/// One row as `show` prints it ([`shown_row`], the rule `Store::show` uses too).
+fn shape(row: Value) -> Value {
+    match row {
+        Value::Object(map) => shown_row(map),
+        other => other,
     }
-    Value::Object(out)
 }
 
 #[cfg(test)]
