@@ -1,5 +1,6 @@
 //! Processing steps, one module each; every step is a function over the mesh.
 
+pub mod bake;
 pub mod border;
 pub mod crop;
 pub mod decimate;

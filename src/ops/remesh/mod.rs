@@ -94,6 +94,13 @@ pub struct RemeshParams {
     /// the border ([`sizing::border_sizes`]). Left out of the resolved recipe when absent.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub border_edge_ratio: Option<f64>,
+    /// `isotropic` only: write a new texture image for the result ([`crate::ops::bake`]), in
+    /// which every point shows the colour the input shows at its nearest point, instead of
+    /// keeping the input's image (whose photo then lands slightly off between the new
+    /// corners). Costs time and a PNG of the input image's size per material. Left out of
+    /// the resolved recipe when false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub bake_texture: bool,
 }
 
 impl Default for RemeshParams {
@@ -114,6 +121,7 @@ impl Default for RemeshParams {
             min_edge_fraction: None,
             on_surface: false,
             border_edge_ratio: None,
+            bake_texture: false,
         }
     }
 }
@@ -312,6 +320,9 @@ impl RemeshParams {
         if self.border_edge_ratio.is_some() {
             return Err("method \"patches\" takes closed meshes only and has no border_edge_ratio (that is method = \"isotropic\"'s)".into());
         }
+        if self.bake_texture {
+            return Err("method \"patches\" drops texture coordinates, so it has no bake_texture (that is method = \"isotropic\"'s)".into());
+        }
         if self.on_surface {
             return Err("method \"patches\" has no on_surface: its vertices are on its Bézier patches, not on the input (on_surface is method = \"isotropic\"'s)".into());
         }
@@ -389,6 +400,9 @@ pub struct RemeshReport {
     /// absent when `border_edge_ratio` is 1 or the mesh is closed).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub border_edge: Option<f64>,
+    /// `bake_texture = true` only: the images baked and the texels read.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bake: Option<crate::ops::bake::BakeReport>,
     /// `patches` only: seeds, retries, regions, patches; texture coordinates are dropped.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub patches: Option<patches::PatchesReport>,
@@ -470,7 +484,10 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         params.iterations,
         !params.on_surface,
     );
-    let out = export::export(&c, &lines, mesh, &topo, &chart_of_input, &bvh);
+    let mut out = export::export(&c, &lines, mesh, &topo, &chart_of_input, &bvh);
+    let bake = params
+        .bake_texture
+        .then(|| crate::ops::bake::bake(&mut out, mesh, &bvh));
     let report = RemeshReport {
         method: params.method,
         edge_length: field.edge_length,
@@ -489,6 +506,7 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         seconds: start.elapsed().as_secs_f64(),
         sizing: field.report,
         border_edge: field.border_edge,
+        bake,
         patches: None,
     };
     Ok((out, report))
@@ -633,6 +651,7 @@ fn remesh_patches(
             seconds: start.elapsed().as_secs_f64(),
             sizing: None,
             border_edge: None,
+            bake: None,
             patches: Some(report),
         },
     ))

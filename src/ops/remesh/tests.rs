@@ -592,3 +592,15 @@ fn border_edge_ratio_validates() {
     let e = patches.validate().unwrap_err();
     assert!(e.contains("border_edge_ratio"), "{e}");
 }
+
+#[test]
+fn bake_texture_is_isotropic_only() {
+    assert!(validate_changed(|p| p.bake_texture = true).is_ok());
+    let patches = RemeshParams {
+        method: Method::Patches,
+        bake_texture: true,
+        ..RemeshParams::default()
+    };
+    let e = patches.validate().unwrap_err();
+    assert!(e.contains("bake_texture"), "{e}");
+}

@@ -1,0 +1,394 @@
+//! Texture baking: a new image for each textured material of a mesh whose triangles no
+//! longer follow the source's (a remesh), so that every point of the new surface shows the
+//! colour the source shows at its closest point.
+//!
+//! Why: a remesh gives each new corner the texture coordinate of the source at that point,
+//! within its chart, but between the corners the new triangle interpolates the coordinates
+//! linearly, where the source's own map is linear per source triangle. Where the two
+//! triangulations differ the photo lands a little off (up to a few texels on a scan whose
+//! map stretches), which the texture metric reads as colour deviation (docs/remeshing.md).
+//! Baking reads the colour through the source's map at every texel instead.
+//!
+//! The rule, per texel of the new image: the texel's centre, inside a new triangle's
+//! texture-space image, is a point of that triangle (its barycentric weights in texture
+//! space); the colour is the source's (bilinear) at the source point nearest to it, the
+//! same correspondence the texture metric uses. Texels no new triangle covers keep the
+//! source image's colour, so the gutters around charts stay as they were and bilinear
+//! look-ups at chart edges read sensible colours. Coordinates outside [0, 1] (tiled
+//! textures) are not baked: those texels keep the source's colour.
+//!
+//! The image is the source's size. Rows are baked in bands, in parallel; within a band the
+//! triangles are rasterised in ascending order (a later one wins a shared texel), so the
+//! image is the same whatever the thread count.
+
+use crate::geom::bvh::{TriangleBvh, TriangleHit};
+use crate::mesh::{EmbeddedImage, Mesh, Texture};
+use crate::metrics::texture::{TextureCache, bilinear};
+use glam::{DVec2, DVec3};
+use image::RgbImage;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// Rows of one band: enough texels per task to amortise the bucketing, small enough that
+/// a 1,600-row image gives both cores many bands.
+const BAND_ROWS: usize = 32;
+
+/// Texture-space slack of the inside test, in barycentric weight: a texel centre on a
+/// shared edge belongs to both triangles rather than to neither.
+const INSIDE_SLACK: f64 = 1e-9;
+
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct BakeReport {
+    /// Materials given a baked image.
+    pub images: usize,
+    /// Texels read from the source surface.
+    pub texels: usize,
+    /// Why a textured material was left with the source's image, if one was.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub skipped: Vec<String>,
+}
+
+/// Bakes every textured material of `result` from `source` (the mesh `result` was made from;
+/// `bvh` indexes its triangles). `result`'s material `m` is assumed to be `source`'s material
+/// `m` (a remesh keeps them), its texture coordinates in the same charts.
+pub fn bake(result: &mut Mesh, source: &Mesh, bvh: &TriangleBvh) -> BakeReport {
+    let mut report = BakeReport::default();
+    if !result.has_texcoords() || !source.has_texcoords() {
+        return report;
+    }
+    let mut cache = TextureCache::new();
+    let source_images: Vec<Option<Arc<RgbImage>>> = source
+        .materials
+        .iter()
+        .map(|m| {
+            let t = m.diffuse_texture.as_ref()?;
+            cache.get_texture(t).ok()
+        })
+        .collect();
+    for m in 0..result.materials.len() {
+        let Some(texture) = result.materials[m].diffuse_texture.clone() else {
+            continue;
+        };
+        let Some(Some(background)) = source_images.get(m) else {
+            report.skipped.push(format!(
+                "material {:?}: the source's texture could not be read",
+                result.materials[m].name
+            ));
+            continue;
+        };
+        let (image, texels) =
+            bake_material(result, m as u32, source, &source_images, bvh, background);
+        match encode_png(&image) {
+            Ok(bytes) => {
+                result.materials[m].diffuse_texture = Some(baked_texture(&texture, bytes, &image));
+                report.images += 1;
+                report.texels += texels;
+            }
+            Err(e) => report.skipped.push(format!(
+                "material {:?}: the baked image did not encode: {e}",
+                result.materials[m].name
+            )),
+        }
+    }
+    report
+}
+
+/// The baked image of material `m` of `result` and how many texels were read.
+fn bake_material(
+    result: &Mesh,
+    m: u32,
+    source: &Mesh,
+    source_images: &[Option<Arc<RgbImage>>],
+    bvh: &TriangleBvh,
+    background: &RgbImage,
+) -> (RgbImage, usize) {
+    let (w, h) = (background.width() as usize, background.height() as usize);
+    let bands = h.div_ceil(BAND_ROWS);
+    let mut by_band: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    for t in 0..result.triangles.len() {
+        if result.triangle_material(t) != m {
+            continue;
+        }
+        let Some(px) = pixel_corners(result, t, w, h) else {
+            continue;
+        };
+        let (lo, hi) = row_range(&px, h);
+        if lo < hi {
+            for band in &mut by_band[lo / BAND_ROWS..=(hi - 1) / BAND_ROWS] {
+                band.push(t as u32);
+            }
+        }
+    }
+    let mut image = background.clone();
+    let row_bytes = w * 3;
+    let texels: usize = image
+        .par_chunks_mut(row_bytes * BAND_ROWS)
+        .zip(by_band.par_iter())
+        .enumerate()
+        .map(|(band, (rows, triangles))| {
+            let first_row = band * BAND_ROWS;
+            let mut band = Band {
+                rows,
+                first_row,
+                width: w,
+                height: h,
+                last: None,
+                texels: 0,
+            };
+            for &t in triangles {
+                band.fill(result, t as usize, source, source_images, bvh);
+            }
+            band.texels
+        })
+        .sum();
+    (image, texels)
+}
+
+/// Triangle `t`'s corners in pixel coordinates (texel `(i, j)` has its centre at `(i, j)`),
+/// if all three have texture coordinates within [0, 1] and the image is not degenerate.
+fn pixel_corners(mesh: &Mesh, t: usize, w: usize, h: usize) -> Option<[DVec2; 3]> {
+    let mut out = [DVec2::ZERO; 3];
+    for (k, &wedge) in mesh.triangles[t].iter().enumerate() {
+        let uv = mesh.wedge_texcoord(wedge)?;
+        if !(0.0..=1.0).contains(&uv.x) || !(0.0..=1.0).contains(&uv.y) {
+            return None;
+        }
+        out[k] = DVec2::new(uv.x * w as f64 - 0.5, (1.0 - uv.y) * h as f64 - 0.5);
+    }
+    let [a, b, c] = out;
+    let area = (b - a).perp_dot(c - a);
+    (area.abs() > 1e-12).then_some(out)
+}
+
+/// The rows `lo..hi` whose centres the triangle's pixel box spans, within the image.
+fn row_range(px: &[DVec2; 3], h: usize) -> (usize, usize) {
+    let min = px.iter().map(|p| p.y).fold(f64::INFINITY, f64::min);
+    let max = px.iter().map(|p| p.y).fold(f64::NEG_INFINITY, f64::max);
+    let lo = min.ceil().max(0.0) as usize;
+    let hi = ((max.floor() + 1.0).max(0.0) as usize).min(h);
+    (lo, hi)
+}
+
+/// One band of rows of the image being baked.
+struct Band<'a> {
+    rows: &'a mut [u8],
+    first_row: usize,
+    width: usize,
+    height: usize,
+    /// The last texel's nearest source point: the next texel's search starts from it.
+    last: Option<TriangleHit>,
+    texels: usize,
+}
+
+impl Band<'_> {
+    /// Writes every texel of this band whose centre lies in triangle `t`'s texture image.
+    fn fill(
+        &mut self,
+        result: &Mesh,
+        t: usize,
+        source: &Mesh,
+        source_images: &[Option<Arc<RgbImage>>],
+        bvh: &TriangleBvh,
+    ) {
+        let Some(px) = pixel_corners(result, t, self.width, self.height) else {
+            return;
+        };
+        let (lo, hi) = row_range(&px, self.height);
+        let band_end = (self.first_row + BAND_ROWS).min(self.height);
+        let corners = result.triangle_positions(t);
+        let [a, b, c] = px;
+        let area = (b - a).perp_dot(c - a);
+        let xmin = px.iter().map(|p| p.x).fold(f64::INFINITY, f64::min);
+        let xmax = px.iter().map(|p| p.x).fold(f64::NEG_INFINITY, f64::max);
+        let (x0, x1) = (
+            xmin.ceil().max(0.0) as usize,
+            ((xmax.floor() + 1.0).max(0.0) as usize).min(self.width),
+        );
+        for j in lo.max(self.first_row)..hi.min(band_end) {
+            for i in x0..x1 {
+                let p = DVec2::new(i as f64, j as f64);
+                let wa = (b - p).perp_dot(c - p) / area;
+                let wb = (c - p).perp_dot(a - p) / area;
+                let wc = 1.0 - wa - wb;
+                if wa < -INSIDE_SLACK || wb < -INSIDE_SLACK || wc < -INSIDE_SLACK {
+                    continue;
+                }
+                let point = corners[0] * wa + corners[1] * wb + corners[2] * wc;
+                let Some(colour) = self.source_colour(point, source, source_images, bvh) else {
+                    continue;
+                };
+                let at = ((j - self.first_row) * self.width + i) * 3;
+                for (k, v) in colour.to_array().into_iter().enumerate() {
+                    self.rows[at + k] = v.round().clamp(0.0, 255.0) as u8;
+                }
+                self.texels += 1;
+            }
+        }
+    }
+
+    /// The source's colour at its point nearest to `p`, if that triangle is textured.
+    fn source_colour(
+        &mut self,
+        p: DVec3,
+        source: &Mesh,
+        images: &[Option<Arc<RgbImage>>],
+        bvh: &TriangleBvh,
+    ) -> Option<DVec3> {
+        let start = self.last.map(|h| bvh.hit_on(p, h.triangle));
+        let hit = bvh.closest(p, start)?;
+        self.last = Some(hit);
+        let s = hit.triangle as usize;
+        let image = images.get(source.triangle_material(s) as usize)?.as_ref()?;
+        let [wa, wb, wc] = source.triangles[s];
+        let uv = source.wedge_texcoord(wa)? * hit.bary.x
+            + source.wedge_texcoord(wb)? * hit.bary.y
+            + source.wedge_texcoord(wc)? * hit.bary.z;
+        Some(bilinear(image, uv))
+    }
+}
+
+/// PNG, fast compression: lossless, so the bake adds no error of its own.
+fn encode_png(image: &RgbImage) -> Result<Vec<u8>, image::ImageError> {
+    use image::ImageEncoder;
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let mut bytes = Vec::new();
+    PngEncoder::new_with_quality(&mut bytes, CompressionType::Fast, FilterType::Adaptive)
+        .write_image(
+            image.as_raw(),
+            image.width(),
+            image.height(),
+            image::ExtendedColorType::Rgb8,
+        )?;
+    Ok(bytes)
+}
+
+/// The texture the baked image becomes: named after the source's (`<stem>_baked.png`; the
+/// writers sanitise it), held in memory, with a path that is never opened and that no other
+/// texture has.
+fn baked_texture(source: &Texture, bytes: Vec<u8>, image: &RgbImage) -> Texture {
+    let stem = source
+        .name
+        .rsplit('/')
+        .next()
+        .and_then(|n| n.rsplit_once('.').map(|(s, _)| s).or(Some(n)))
+        .filter(|s| !s.is_empty())
+        .unwrap_or("texture");
+    Texture {
+        name: format!("{stem}_baked.png"),
+        path: PathBuf::from(format!("{}#baked", source.path.display())),
+        size: Some((image.width(), image.height())),
+        embedded: Some(EmbeddedImage(bytes.into())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::grid;
+    use crate::mesh::{Material, Texture};
+    use crate::metrics::surface::{SurfaceIndex, sample_surface};
+    use crate::metrics::texture::{TextureDeviation, deviation_with};
+    use crate::testing::on_threads;
+    use std::path::Path;
+
+    /// A horizontal ramp: red = column (0..=255), green = 255 − column, blue = 17.
+    fn ramp(dir: &Path) -> PathBuf {
+        let img = RgbImage::from_fn(256, 64, |x, _| image::Rgb([x as u8, 255 - x as u8, 17]));
+        let path = dir.join("ramp.png");
+        img.save(&path).unwrap();
+        path
+    }
+
+    /// The square [0, 8]² as `n`×`n` cells, textured by the ramp through a map that is not
+    /// linear (u = 0.05 + 0.9 (x/8)², v = y/8), so that a coarser triangulation
+    /// interpolating the same map at its corners puts the photo off between them. (u stays
+    /// clear of the image's left and right edges, where the look-ups wrap around and the
+    /// ramp jumps from 255 to 0.)
+    fn square(n: usize, texture: &Path) -> Mesh {
+        let mut m = grid(n, n);
+        let scale = 8.0 / n as f64;
+        for (p, uv) in m.positions.iter_mut().zip(m.texcoords.iter_mut()) {
+            *p *= scale;
+            *uv = DVec2::new(0.05 + 0.9 * (p.x / 8.0).powi(2), p.y / 8.0);
+        }
+        m.materials.push(Material {
+            name: "skin".into(),
+            diffuse_texture: Some(Texture {
+                name: "ramp.png".into(),
+                path: texture.to_path_buf(),
+                size: None,
+                embedded: None,
+            }),
+            other_statements: vec![],
+            map_files: vec![],
+        });
+        m
+    }
+
+    fn rms(result: &Mesh, source: &Mesh) -> f64 {
+        let index = SurfaceIndex::new(source, "source").unwrap();
+        let samples = sample_surface(result, 4000, 11);
+        let points: Vec<DVec3> = samples.iter().map(|s| s.point).collect();
+        let closest = index.closest_all(&points);
+        let cache = &mut TextureCache::new();
+        match deviation_with(result, source, &samples, &closest, cache) {
+            TextureDeviation::Measured { rms, .. } => rms,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn baked(result: &Mesh, source: &Mesh) -> (Mesh, BakeReport) {
+        let bvh = TriangleBvh::new(source, (0..source.triangles.len() as u32).collect());
+        let mut out = result.clone();
+        let report = bake(&mut out, source, &bvh);
+        (out, report)
+    }
+
+    #[test]
+    fn a_coarser_mesh_shows_the_source_colours_once_baked() {
+        let dir = tempfile::tempdir().unwrap();
+        let texture = ramp(dir.path());
+        let source = square(16, &texture);
+        let coarse = square(2, &texture);
+        let before = rms(&coarse, &source);
+        let (out, report) = baked(&coarse, &source);
+        let after = rms(&out, &source);
+        // Between the coarse corners u is off by up to 0.9/16 of the ramp: 14 levels.
+        assert!(before > 5.0, "unbaked {before}");
+        assert!(after < 1.0, "baked {after} (unbaked {before})");
+        assert_eq!(report.images, 1);
+        assert!(report.skipped.is_empty(), "{report:?}");
+        // The square's image covers 90 % of the texture's columns, all its rows.
+        assert!(report.texels >= 230 * 63, "{report:?}");
+        let t = out.materials[0].diffuse_texture.as_ref().unwrap();
+        assert_eq!(t.name, "ramp_baked.png");
+        assert_eq!(t.size, Some((256, 64)));
+        assert!(t.embedded.is_some());
+        // The untouched mesh keeps its texture.
+        assert_eq!(out.triangles, coarse.triangles);
+        assert_eq!(out.texcoords, coarse.texcoords);
+    }
+
+    #[test]
+    fn the_same_image_whatever_the_thread_count() {
+        let dir = tempfile::tempdir().unwrap();
+        let texture = ramp(dir.path());
+        let source = square(16, &texture);
+        let coarse = square(3, &texture);
+        let image = |threads| {
+            let (out, _) = on_threads(threads, || baked(&coarse, &source));
+            out.materials[0].diffuse_texture.clone().unwrap().embedded
+        };
+        assert_eq!(image(1), image(3));
+    }
+
+    #[test]
+    fn untextured_meshes_are_left_alone() {
+        let source = grid(4, 4);
+        let (out, report) = baked(&grid(2, 2), &source);
+        assert_eq!(report.images, 0);
+        assert_eq!(out, grid(2, 2));
+    }
+}
