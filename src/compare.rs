@@ -47,7 +47,7 @@ pub struct CompareOptions {
 }
 
 /// One row: a recipe's result against the clean input (or the noisy input itself).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct CompareRow {
     pub name: String,
     /// Wall time of the recipe's steps (loading and measuring excluded), milliseconds.
@@ -96,22 +96,7 @@ impl CompareRow {
             time_ms,
             vertices: mesh.positions.len(),
             faces: mesh.triangles.len(),
-            error: None,
-            distance_mean: None,
-            distance_rms: None,
-            distance_max: None,
-            distance_mean_percent: None,
-            distance_rms_percent: None,
-            distance_max_percent: None,
-            to_clean_mean_percent: None,
-            from_clean_mean_percent: None,
-            volume_change_percent: None,
-            vertex_offset_abs_mean: None,
-            vertex_offset_signed_mean: None,
-            angular_mean: None,
-            angular_rms: None,
-            texture_mean: None,
-            metrics: None,
+            ..CompareRow::default()
         }
     }
 

@@ -19,7 +19,7 @@ pub struct HistoryFilter {
     pub limit: Option<usize>,
 }
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Default, Serialize)]
 pub struct HistoryRow {
     pub id: Option<i64>,
     pub state: String,
@@ -42,20 +42,12 @@ impl HistoryRow {
     /// A scan that has waited since `first_seen_ms` for a missing member, for `reason`.
     pub(crate) fn waiting(input: String, first_seen_ms: i64, reason: &str) -> HistoryRow {
         HistoryRow {
-            id: None,
             state: "waiting".into(),
             created: iso_time(first_seen_ms),
-            finished: None,
             input,
-            recipe: String::new(),
-            attempts: 0,
-            in_faces: None,
-            out_faces: None,
-            process_ms: None,
-            output: None,
-            outputs: Vec::new(),
             error_kind: Some("waiting".into()),
             error: Some(bounded(reason, MAX_SHOWN)),
+            ..HistoryRow::default()
         }
     }
 }
