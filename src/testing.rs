@@ -34,3 +34,46 @@ impl Lcg {
         self.unit() * 2.0 - 1.0
     }
 }
+
+/// A horizontal ramp written as `ramp.png` in `dir`: red = column (0..=255), green =
+/// 255 − column, blue = 17; for tests of the texture metric and the bake.
+pub fn ramp_png(dir: &std::path::Path) -> std::path::PathBuf {
+    let img = image::RgbImage::from_fn(256, 64, |x, _| image::Rgb([x as u8, 255 - x as u8, 17]));
+    let path = dir.join("ramp.png");
+    img.save(&path).unwrap();
+    path
+}
+
+/// A material whose diffuse texture is the image at `path` (not checked).
+pub fn ramp_material(path: &std::path::Path) -> crate::mesh::Material {
+    crate::mesh::Material {
+        name: "skin".into(),
+        diffuse_texture: Some(crate::mesh::Texture {
+            name: "ramp.png".into(),
+            path: path.to_path_buf(),
+            size: None,
+            embedded: None,
+        }),
+        other_statements: vec![],
+        map_files: vec![],
+    }
+}
+
+/// The texture deviation of `result` against `reference`, from 4,000 samples of `result`.
+pub fn texture_deviation(
+    result: &crate::mesh::Mesh,
+    reference: &crate::mesh::Mesh,
+) -> crate::metrics::texture::TextureDeviation {
+    use crate::metrics::surface::{SurfaceIndex, sample_surface};
+    let index = SurfaceIndex::new(reference, "reference").unwrap();
+    let samples = sample_surface(result, 4000, 11);
+    let points: Vec<glam::DVec3> = samples.iter().map(|s| s.point).collect();
+    let closest = index.closest_all(&points);
+    crate::metrics::texture::deviation_with(
+        result,
+        reference,
+        &samples,
+        &closest,
+        &mut crate::metrics::texture::TextureCache::new(),
+    )
+}

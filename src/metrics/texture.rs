@@ -156,12 +156,22 @@ pub fn bilinear(image: &RgbImage, uv: DVec2) -> DVec3 {
 
 /// The colour a mesh shows at a surface point, if that triangle is textured.
 fn colour_at(mesh: &Mesh, images: &[Option<Arc<RgbImage>>], at: &SurfacePoint) -> Option<DVec3> {
-    let t = at.triangle as usize;
+    colour_on(mesh, images, at.triangle as usize, at.bary)
+}
+
+/// The colour a mesh shows at the point of triangle `t` with barycentric weights `bary`, if
+/// that triangle is textured (`images` per material, as [`TextureCache`] gives them).
+pub fn colour_on(
+    mesh: &Mesh,
+    images: &[Option<Arc<RgbImage>>],
+    t: usize,
+    bary: DVec3,
+) -> Option<DVec3> {
     let image = images.get(mesh.triangle_material(t) as usize)?.as_ref()?;
     let [a, b, c] = mesh.triangles[t];
-    let uv = mesh.wedge_texcoord(a)? * at.bary.x
-        + mesh.wedge_texcoord(b)? * at.bary.y
-        + mesh.wedge_texcoord(c)? * at.bary.z;
+    let uv = mesh.wedge_texcoord(a)? * bary.x
+        + mesh.wedge_texcoord(b)? * bary.y
+        + mesh.wedge_texcoord(c)? * bary.z;
     Some(bilinear(image, uv))
 }
 
@@ -220,45 +230,16 @@ pub fn deviation_with(
 mod tests {
     use super::*;
     use crate::mesh::shapes::grid;
-    use crate::mesh::{Material, Texture};
-    use crate::metrics::surface::{SurfaceIndex, sample_surface};
-
-    /// A horizontal ramp: red = column (0..=255), green = 255 − column, blue = 17.
-    fn ramp(dir: &Path) -> PathBuf {
-        let img = RgbImage::from_fn(256, 64, |x, _| image::Rgb([x as u8, 255 - x as u8, 17]));
-        let path = dir.join("ramp.png");
-        img.save(&path).unwrap();
-        path
-    }
+    use crate::testing::{ramp_material, ramp_png, texture_deviation};
 
     fn textured_grid(path: &Path) -> Mesh {
         let mut m = grid(8, 8);
-        m.materials.push(Material {
-            name: "skin".into(),
-            diffuse_texture: Some(Texture {
-                name: "ramp.png".into(),
-                path: path.to_path_buf(),
-                size: None,
-                embedded: None,
-            }),
-            other_statements: vec![],
-            map_files: vec![],
-        });
+        m.materials.push(ramp_material(path));
         m
     }
 
     fn measure(result: &Mesh, reference: &Mesh) -> TextureDeviation {
-        let index = SurfaceIndex::new(reference, "reference").unwrap();
-        let samples = sample_surface(result, 4000, 11);
-        let points: Vec<DVec3> = samples.iter().map(|s| s.point).collect();
-        let closest = index.closest_all(&points);
-        deviation_with(
-            result,
-            reference,
-            &samples,
-            &closest,
-            &mut TextureCache::new(),
-        )
+        texture_deviation(result, reference)
     }
 
     #[test]
@@ -278,7 +259,7 @@ mod tests {
     #[test]
     fn same_texture_is_zero_and_shift_is_measured() {
         let dir = tempfile::tempdir().unwrap();
-        let path = ramp(dir.path());
+        let path = ramp_png(dir.path());
         let reference = textured_grid(&path);
         match measure(&reference, &reference) {
             TextureDeviation::Measured { max, samples, .. } => {

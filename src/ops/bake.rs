@@ -23,7 +23,7 @@
 
 use crate::geom::bvh::{TriangleBvh, TriangleHit};
 use crate::mesh::{EmbeddedImage, Mesh, Texture};
-use crate::metrics::texture::{TextureCache, bilinear};
+use crate::metrics::texture::{TextureCache, colour_on};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use rayon::prelude::*;
@@ -239,13 +239,7 @@ impl Band<'_> {
         let start = self.last.map(|h| bvh.hit_on(p, h.triangle));
         let hit = bvh.closest(p, start)?;
         self.last = Some(hit);
-        let s = hit.triangle as usize;
-        let image = images.get(source.triangle_material(s) as usize)?.as_ref()?;
-        let [wa, wb, wc] = source.triangles[s];
-        let uv = source.wedge_texcoord(wa)? * hit.bary.x
-            + source.wedge_texcoord(wb)? * hit.bary.y
-            + source.wedge_texcoord(wc)? * hit.bary.z;
-        Some(bilinear(image, uv))
+        colour_on(source, images, hit.triangle as usize, hit.bary)
     }
 }
 
@@ -287,19 +281,9 @@ fn baked_texture(source: &Texture, bytes: Vec<u8>, image: &RgbImage) -> Texture 
 mod tests {
     use super::*;
     use crate::mesh::shapes::grid;
-    use crate::mesh::{Material, Texture};
-    use crate::metrics::surface::{SurfaceIndex, sample_surface};
-    use crate::metrics::texture::{TextureDeviation, deviation_with};
-    use crate::testing::on_threads;
+    use crate::metrics::texture::TextureDeviation;
+    use crate::testing::{on_threads, ramp_material, ramp_png, texture_deviation};
     use std::path::Path;
-
-    /// A horizontal ramp: red = column (0..=255), green = 255 − column, blue = 17.
-    fn ramp(dir: &Path) -> PathBuf {
-        let img = RgbImage::from_fn(256, 64, |x, _| image::Rgb([x as u8, 255 - x as u8, 17]));
-        let path = dir.join("ramp.png");
-        img.save(&path).unwrap();
-        path
-    }
 
     /// The square [0, 8]² as `n`×`n` cells, textured by the ramp through a map that is not
     /// linear (u = 0.05 + 0.9 (x/8)², v = y/8), so that a coarser triangulation
@@ -313,27 +297,12 @@ mod tests {
             *p *= scale;
             *uv = DVec2::new(0.05 + 0.9 * (p.x / 8.0).powi(2), p.y / 8.0);
         }
-        m.materials.push(Material {
-            name: "skin".into(),
-            diffuse_texture: Some(Texture {
-                name: "ramp.png".into(),
-                path: texture.to_path_buf(),
-                size: None,
-                embedded: None,
-            }),
-            other_statements: vec![],
-            map_files: vec![],
-        });
+        m.materials.push(ramp_material(texture));
         m
     }
 
     fn rms(result: &Mesh, source: &Mesh) -> f64 {
-        let index = SurfaceIndex::new(source, "source").unwrap();
-        let samples = sample_surface(result, 4000, 11);
-        let points: Vec<DVec3> = samples.iter().map(|s| s.point).collect();
-        let closest = index.closest_all(&points);
-        let cache = &mut TextureCache::new();
-        match deviation_with(result, source, &samples, &closest, cache) {
+        match texture_deviation(result, source) {
             TextureDeviation::Measured { rms, .. } => rms,
             other => panic!("{other:?}"),
         }
@@ -349,7 +318,7 @@ mod tests {
     #[test]
     fn a_coarser_mesh_shows_the_source_colours_once_baked() {
         let dir = tempfile::tempdir().unwrap();
-        let texture = ramp(dir.path());
+        let texture = ramp_png(dir.path());
         let source = square(16, &texture);
         let coarse = square(2, &texture);
         let before = rms(&coarse, &source);
@@ -374,7 +343,7 @@ mod tests {
     #[test]
     fn the_same_image_whatever_the_thread_count() {
         let dir = tempfile::tempdir().unwrap();
-        let texture = ramp(dir.path());
+        let texture = ramp_png(dir.path());
         let source = square(16, &texture);
         let coarse = square(3, &texture);
         let image = |threads| {
