@@ -485,9 +485,10 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
         !params.on_surface,
     );
     let mut out = export::export(&c, &lines, mesh, &topo, &chart_of_input, &bvh);
-    let bake = params
-        .bake_texture
-        .then(|| crate::ops::bake::bake(&mut out, mesh, &bvh));
+    let bake = params.bake_texture.then(|| {
+        let source = crate::ops::bake::Source { mesh, bvh: &bvh };
+        crate::ops::bake::bake(&mut out, &source)
+    });
     let report = RemeshReport {
         method: params.method,
         edge_length: field.edge_length,
