@@ -4,6 +4,8 @@
 //! (269k triangles) and Lucy (100k; the aim is under 5 s for 100k triangles).
 //! `isotropic adaptive` is the same with `adaptive = true` (1 % of the diagonal the longest
 //! edge, the default tolerance and shortest edge), on the same scans.
+//! `isotropic james bake_texture` is James's case with the texture baked (`ops::bake`: 1.3 M
+//! texels of its 2400×1600 photo read from the input surface, and the PNG encoded).
 //! A scan that is missing fails the bench: the figures must not quietly shrink.
 
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -41,6 +43,10 @@ fn bench(c: &mut Criterion) {
         on_surface: true,
         ..isotropic.clone()
     };
+    let baked = RemeshParams {
+        bake_texture: true,
+        ..isotropic.clone()
+    };
     let patches = RemeshParams {
         method: Method::Patches,
         ..Default::default()
@@ -75,6 +81,11 @@ fn bench(c: &mut Criterion) {
             "isotropic igea on_surface",
             "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz",
             &on_surface,
+        ),
+        (
+            "isotropic james bake_texture",
+            "textured/james_face_stereo_capture/james.obj",
+            &baked,
         ),
         (
             "isotropic adaptive facefuns",
