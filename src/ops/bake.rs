@@ -82,6 +82,7 @@ pub fn bake(result: &mut Mesh, source: &Source) -> BakeReport {
         let name = &result.materials[m].name;
         let Some(Some(background)) = reader.images.get(m) else {
             let why = format!("material {name:?}: the source's texture could not be read");
+            tracing::warn!("bake: {why}; the input's image is kept");
             report.skipped.push(why);
             continue;
         };
@@ -94,6 +95,7 @@ pub fn bake(result: &mut Mesh, source: &Source) -> BakeReport {
             }
             Err(e) => {
                 let why = format!("material {name:?}: the baked image did not encode: {e}");
+                tracing::warn!("bake: {why}; the input's image is kept");
                 report.skipped.push(why);
             }
         }
@@ -207,7 +209,8 @@ struct Band<'a> {
 
 impl Band<'_> {
     /// Writes every texel of this band whose centre lies in triangle `t`'s texture image.
-    /// Each texel's search is bounded by the source triangle of the texel before.
+    /// Each texel's search after the triangle's first is bounded by the source triangle of
+    /// the texel before.
     fn fill(&mut self, result: &Mesh, t: usize, reader: &Reader) {
         let Some(px) = pixel_corners(result, t, self.width, self.height) else {
             return;
