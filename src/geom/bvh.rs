@@ -53,6 +53,40 @@ pub struct Search {
     pub cost: QueryCost,
 }
 
+/// Triangles near a region, with their boxes ([`TriangleBvh::neighbourhood`]).
+#[derive(Debug, Default)]
+pub struct Neighbourhood {
+    items: Vec<Near>,
+}
+
+impl Neighbourhood {
+    pub fn len(&self) -> usize {
+        self.items.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.items.is_empty()
+    }
+}
+
+/// The answer of [`TriangleBvh::closest_among`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Among {
+    Nearest(TriangleHit),
+    /// Two triangles are exactly as near.
+    Tied,
+    /// No triangle (an empty neighbourhood and no start).
+    Empty,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Near {
+    /// Index into the tree's leaf order.
+    leaf: u32,
+    min: DVec3,
+    max: DVec3,
+}
+
 /// A node: a box, and either two children (`count == 0`, at `first` and `first + 1`) or a
 /// run of `count` triangles starting at `first` in [`TriangleBvh::order`].
 #[derive(Debug, Clone, Copy)]
@@ -253,6 +287,102 @@ impl<'a> TriangleBvh<'a> {
                     break;
                 }
             }
+        }
+    }
+
+    /// The indexed triangles whose boxes meet the box `lo..hi`, into `out` (cleared first),
+    /// or `false` as soon as there are more than `limit`. For many queries of points inside a
+    /// small region: [`TriangleBvh::closest_among`] then tests only these.
+    pub fn neighbourhood(
+        &self,
+        lo: DVec3,
+        hi: DVec3,
+        limit: usize,
+        out: &mut Neighbourhood,
+    ) -> bool {
+        out.items.clear();
+        if self.order.is_empty() {
+            return true;
+        }
+        let meets = |min: DVec3, max: DVec3| min.cmple(hi).all() && max.cmpge(lo).all();
+        let mut stack = [0u32; MAX_DEPTH];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            let n = &self.nodes[stack[top] as usize];
+            let (min, max) = (
+                DVec3::from_array(n.min.map(f64::from)),
+                DVec3::from_array(n.max.map(f64::from)),
+            );
+            if !meets(min, max) {
+                continue;
+            }
+            if n.count == 0 {
+                stack[top] = n.first;
+                stack[top + 1] = n.first + 1;
+                top += 2;
+                continue;
+            }
+            let first = n.first as usize;
+            for i in first..first + n.count as usize {
+                let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+                let (min, max) = (a.min(b).min(c), a.max(b).max(c));
+                if meets(min, max) {
+                    if out.items.len() == limit {
+                        return false;
+                    }
+                    out.items.push(Near {
+                        leaf: i as u32,
+                        min,
+                        max,
+                    });
+                }
+            }
+        }
+        true
+    }
+
+    /// The closest point to `p` of the triangles of `near`, `start` (if given) taken first.
+    /// It is the closest of the whole index when `near` was gathered over a box that holds
+    /// the ball around `p` whose radius is `p`'s distance to the surface (the caller's
+    /// bound). Where another triangle is exactly as near, which one [`TriangleBvh::search`]
+    /// would answer depends on its traversal, so the answer is `Tied` and the caller
+    /// searches the tree to get the same one.
+    pub fn closest_among(
+        &self,
+        p: DVec3,
+        near: &Neighbourhood,
+        start: Option<TriangleHit>,
+    ) -> Among {
+        let mut best = start;
+        let mut best_d2 = best.map_or(f64::INFINITY, |h| h.distance_squared);
+        let mut tied = false;
+        for n in &near.items {
+            let gap = (n.min - p).max(p - n.max).max(DVec3::ZERO);
+            if gap.length_squared() > best_d2 {
+                continue;
+            }
+            let i = n.leaf as usize;
+            let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+            let (point, bary) = closest_on_triangle(p, a, b, c);
+            let d2 = point.distance_squared(p);
+            if d2 < best_d2 {
+                best_d2 = d2;
+                tied = false;
+                best = Some(TriangleHit {
+                    triangle: self.order[i],
+                    point,
+                    bary,
+                    distance_squared: d2,
+                });
+            } else if d2 == best_d2 && best.is_some_and(|h| h.triangle != self.order[i]) {
+                tied = true;
+            }
+        }
+        match best {
+            Some(hit) if !tied => Among::Nearest(hit),
+            Some(_) => Among::Tied,
+            None => Among::Empty,
         }
     }
 
@@ -545,6 +675,63 @@ mod tests {
                 assert_eq!(hinted.distance_squared, hit.distance_squared);
             }
         }
+    }
+
+    /// Points of a small region, tested against the triangles whose boxes meet the region
+    /// grown by the points' distance bound: the answer is the tree search's, to the bit,
+    /// unless two triangles are exactly as near (then `Tied`, and they are). On the grid,
+    /// points straight above its vertices and edges make such ties; at random points there
+    /// are none.
+    #[test]
+    fn closest_among_a_neighbourhood_is_the_tree_search() {
+        let mesh = grid(9, 9);
+        let bvh = TriangleBvh::new(&mesh, (0..mesh.triangles.len() as u32).collect());
+        let mut near = Neighbourhood::default();
+        let mut r = rng(5);
+        let (mut nearest, mut tied) = (0, 0);
+        for k in 0..400 {
+            // A region of side 0.5 at height up to 0.3 over the grid; every point in it is
+            // within 0.3 + the region's diagonal of the surface.
+            let corner = DVec3::new(r.random::<f64>() * 8.0, r.random::<f64>() * 8.0, 0.0);
+            // Every other region starts at a grid vertex, for the points over its lines.
+            let corner = if k % 2 == 0 { corner.floor() } else { corner };
+            let reach = 0.3 + 0.5 * 3f64.sqrt();
+            let (lo, hi) = (corner, corner + DVec3::new(0.5, 0.5, 0.3));
+            assert!(bvh.neighbourhood(lo - reach, hi + reach, 1000, &mut near));
+            assert!(near.len() < mesh.triangles.len());
+            for i in 0..10 {
+                let offset = if k % 2 == 0 {
+                    // On a grid line, over a vertex when i is even.
+                    DVec3::new(0.0, if i % 2 == 0 { 0.0 } else { 0.25 }, 0.1)
+                } else {
+                    DVec3::new(r.random(), r.random(), r.random()) * DVec3::new(0.5, 0.5, 0.3)
+                };
+                let p = corner + offset;
+                let tree = bvh.closest(p, None).unwrap();
+                match bvh.closest_among(p, &near, None) {
+                    Among::Nearest(hit) => {
+                        assert_eq!(hit, tree, "{p}");
+                        nearest += 1;
+                    }
+                    Among::Tied => {
+                        let ties = (0..mesh.triangles.len())
+                            .filter(|&t| {
+                                bvh.hit_on(p, t as u32).distance_squared == tree.distance_squared
+                            })
+                            .count();
+                        assert!(ties >= 2, "{p}: tied with {ties} triangle(s)");
+                        tied += 1;
+                    }
+                    Among::Empty => panic!("{p}: no triangle near"),
+                }
+            }
+        }
+        assert!(
+            nearest > 1000 && tied > 50,
+            "{nearest} nearest, {tied} tied"
+        );
+        // More than `limit` triangles: refused.
+        assert!(!bvh.neighbourhood(DVec3::splat(-1.0), DVec3::splat(10.0), 10, &mut near));
     }
 
     /// The tree over a mesh large enough for the parallel build: every triangle in exactly

@@ -17,8 +17,14 @@
 //! look-ups at chart edges read sensible colours. Coordinates outside [0, 1] (tiled
 //! textures) are not baked: those texels keep the source's colour.
 //!
-//! The nearest source point of a texel is searched in the tree (`geom::bvh`), bounded from
-//! the start by the previous texel's source triangle. A walk over the source's triangles
+//! The nearest source point of a texel is exact, as in the tree (`geom::bvh`), and found
+//! among the few source triangles that can hold it for any point of the new triangle
+//! ([`Reader::neighbourhood`], tested one by one with their boxes), starting from the
+//! previous texel's source triangle. Where two source triangles are exactly as near (a point
+//! over a source edge, often a seam, whose sides show different colours) the tree is
+//! searched, so that the tie goes the way the tree, and the texture metric, break it: the
+//! image is the one a tree search per texel gives, to the bit, in about two thirds of the
+//! time (docs/remeshing.md). A walk over the source's triangles
 //! from there (`ops::remesh::walk`, remeshing's projection) was twice as fast but settled
 //! on the wrong sheet where scans fold or fall apart into pieces: the coral's deviation at
 //! 1 % of the diagonal rose from 1.47 to 2.24 levels RMS, the esp32cam's from 1.87 to 2.76.
@@ -27,7 +33,7 @@
 //! triangles are rasterised in ascending order (a later one wins a shared texel), so the
 //! image is the same whatever the thread count.
 
-use crate::geom::bvh::{TriangleBvh, TriangleHit};
+use crate::geom::bvh::{Among, Neighbourhood, TriangleBvh, TriangleHit};
 use crate::mesh::{EmbeddedImage, Mesh, Texture};
 use crate::metrics::texture::{TextureCache, colour_on};
 use glam::{DVec2, DVec3};
@@ -40,6 +46,10 @@ use std::sync::Arc;
 /// Rows of one band: enough texels per task to amortise the bucketing, small enough that
 /// a 1,600-row image gives both cores many bands.
 const BAND_ROWS: usize = 32;
+
+/// Most source triangles a new triangle's texels test one by one; with more the tree is
+/// searched per texel (a large new triangle over a fine source).
+const NEIGHBOURHOOD_LIMIT: usize = 128;
 
 /// Texture-space slack of the inside test, in barycentric weight: a texel centre on a
 /// shared edge belongs to both triangles rather than to neither.
@@ -117,6 +127,35 @@ impl Reader<'_> {
         bvh.closest(p, near.map(|t| bvh.hit_on(p, t)))
     }
 
+    /// The source triangles that can hold the nearest source point of any point of the
+    /// triangle with corners `c`, into `out`; `false` when there are more than
+    /// [`NEIGHBOURHOOD_LIMIT`] (the tree is then searched per texel instead). Every point p
+    /// of the triangle lies within ℓ/√3 of a corner (ℓ its longest side; the equilateral
+    /// triangle's centre is the farthest case), so p's distance to the source is at most
+    /// that plus the corner's: every triangle nearer to p meets the triangle's box grown by
+    /// that bound.
+    fn neighbourhood(&self, c: [DVec3; 3], out: &mut Neighbourhood) -> bool {
+        let mut reach: f64 = 0.0;
+        for corner in c {
+            match self.nearest(corner, None) {
+                // An answer cut short by the tree's budget is still an upper bound.
+                Some(hit) => reach = reach.max(hit.distance_squared.sqrt()),
+                None => return false,
+            }
+        }
+        let longest = (0..3)
+            .map(|k| c[k].distance(c[(k + 1) % 3]))
+            .fold(0.0, f64::max);
+        let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+        // A little more than the bound, against rounding in the texel's point.
+        let scale = lo.abs().max(hi.abs()).max_element();
+        let r = (reach + longest / 3f64.sqrt()) * (1.0 + 1e-6) + 1e-12 * (1.0 + scale);
+        let grow = DVec3::splat(r);
+        self.source
+            .bvh
+            .neighbourhood(lo - grow, hi + grow, NEIGHBOURHOOD_LIMIT, out)
+    }
+
     /// The source's colour at `hit`, if that triangle is textured.
     fn colour(&self, hit: &TriangleHit) -> Option<DVec3> {
         colour_on(
@@ -163,6 +202,7 @@ fn bake_material(
                 width: w,
                 height: h,
                 texels: 0,
+                near: Neighbourhood::default(),
             };
             for &t in triangles {
                 band.fill(result, t as usize, reader);
@@ -205,6 +245,7 @@ struct Band<'a> {
     width: usize,
     height: usize,
     texels: usize,
+    near: Neighbourhood,
 }
 
 impl Band<'_> {
@@ -226,8 +267,13 @@ impl Band<'_> {
             xmin.ceil().max(0.0) as usize,
             ((xmax.floor() + 1.0).max(0.0) as usize).min(self.width),
         );
+        let (rows, bvh) = (lo.max(self.first_row)..hi.min(band_end), reader.source.bvh);
+        if rows.is_empty() {
+            return;
+        }
+        let local = reader.neighbourhood(corners, &mut self.near);
         let mut last: Option<u32> = None;
-        for j in lo.max(self.first_row)..hi.min(band_end) {
+        for j in rows {
             for i in x0..x1 {
                 let p = DVec2::new(i as f64, j as f64);
                 let wa = (b - p).perp_dot(c - p) / area;
@@ -237,7 +283,17 @@ impl Band<'_> {
                     continue;
                 }
                 let point = corners[0] * wa + corners[1] * wb + corners[2] * wc;
-                let Some(hit) = reader.nearest(point, last) else {
+                let among = match local {
+                    true => {
+                        bvh.closest_among(point, &self.near, last.map(|t| bvh.hit_on(point, t)))
+                    }
+                    false => Among::Tied,
+                };
+                let hit = match among {
+                    Among::Nearest(hit) => Some(hit),
+                    Among::Tied | Among::Empty => reader.nearest(point, last),
+                };
+                let Some(hit) = hit else {
                     continue;
                 };
                 last = Some(hit.triangle);
