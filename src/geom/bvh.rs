@@ -241,17 +241,10 @@ impl<'a> TriangleBvh<'a> {
                 let first = n.first as usize;
                 cost.triangles += n.count;
                 for i in first..first + n.count as usize {
-                    let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
-                    let (point, bary) = closest_on_triangle(p, a, b, c);
-                    let d2 = point.distance_squared(p);
-                    if d2 < best_d2 {
-                        best_d2 = d2;
-                        best = Some(TriangleHit {
-                            triangle: self.order[i],
-                            point,
-                            bary,
-                            distance_squared: d2,
-                        });
+                    let hit = self.leaf_hit(i, p);
+                    if hit.distance_squared < best_d2 {
+                        best_d2 = hit.distance_squared;
+                        best = Some(hit);
                     }
                 }
             } else {
@@ -362,20 +355,14 @@ impl<'a> TriangleBvh<'a> {
             if gap.length_squared() > best_d2 {
                 continue;
             }
-            let i = n.leaf as usize;
-            let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
-            let (point, bary) = closest_on_triangle(p, a, b, c);
-            let d2 = point.distance_squared(p);
-            if d2 < best_d2 {
-                best_d2 = d2;
+            let hit = self.leaf_hit(n.leaf as usize, p);
+            if hit.distance_squared < best_d2 {
+                best_d2 = hit.distance_squared;
                 tied = false;
-                best = Some(TriangleHit {
-                    triangle: self.order[i],
-                    point,
-                    bary,
-                    distance_squared: d2,
-                });
-            } else if d2 == best_d2 && best.is_some_and(|h| h.triangle != self.order[i]) {
+                best = Some(hit);
+            } else if hit.distance_squared == best_d2
+                && best.is_some_and(|h| h.triangle != hit.triangle)
+            {
                 tied = true;
             }
         }
@@ -394,6 +381,19 @@ impl<'a> TriangleBvh<'a> {
     /// Searches so far that stopped at the budget (their answers are upper bounds).
     pub fn cut_short(&self) -> u64 {
         self.cut_short.load(Ordering::Relaxed)
+    }
+
+    /// The closest point to `p` of the triangle at `i` in leaf order.
+    #[inline]
+    fn leaf_hit(&self, i: usize, p: DVec3) -> TriangleHit {
+        let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+        let (point, bary) = closest_on_triangle(p, a, b, c);
+        TriangleHit {
+            triangle: self.order[i],
+            point,
+            bary,
+            distance_squared: point.distance_squared(p),
+        }
     }
 
     /// The closest point of triangle `t` of the mesh (indexed or not) to `p`.
