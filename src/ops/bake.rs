@@ -120,11 +120,22 @@ struct Reader<'a> {
 }
 
 impl Reader<'_> {
-    /// The source's point nearest to `p`; `near` (a nearby texel's source triangle) bounds
-    /// the search from the start.
-    fn nearest(&self, p: DVec3, near: Option<u32>) -> Option<TriangleHit> {
+    /// The source's point nearest to `p`; `last` (a nearby texel's source triangle) bounds
+    /// the search from the start. Among the triangles of `near` when given (gathered by
+    /// [`Reader::neighbourhood`] for a triangle `p` lies in); in the tree otherwise, and
+    /// where two triangles are exactly as near, so that the tie goes the tree's way.
+    fn nearest_within(
+        &self,
+        p: DVec3,
+        near: Option<&Neighbourhood>,
+        last: Option<u32>,
+    ) -> Option<TriangleHit> {
         let bvh = self.source.bvh;
-        bvh.closest(p, near.map(|t| bvh.hit_on(p, t)))
+        let start = last.map(|t| bvh.hit_on(p, t));
+        match near.map(|n| bvh.closest_among(p, n, start)) {
+            Some(Among::Nearest(hit)) => Some(hit),
+            _ => bvh.closest(p, start),
+        }
     }
 
     /// The source triangles that can hold the nearest source point of any point of the
@@ -137,7 +148,7 @@ impl Reader<'_> {
     fn neighbourhood(&self, c: [DVec3; 3], out: &mut Neighbourhood) -> bool {
         let mut reach: f64 = 0.0;
         for corner in c {
-            match self.nearest(corner, None) {
+            match self.source.bvh.closest(corner, None) {
                 // An answer cut short by the tree's budget is still an upper bound.
                 Some(hit) => reach = reach.max(hit.distance_squared.sqrt()),
                 None => return false,
@@ -250,8 +261,8 @@ struct Band<'a> {
 
 impl Band<'_> {
     /// Writes every texel of this band whose centre lies in triangle `t`'s texture image.
-    /// Each texel's search after the triangle's first is bounded by the source triangle of
-    /// the texel before.
+    /// Each texel's search looks among the source triangles near `t` and starts from the
+    /// source triangle of the texel before.
     fn fill(&mut self, result: &Mesh, t: usize, reader: &Reader) {
         let Some(px) = pixel_corners(result, t, self.width, self.height) else {
             return;
@@ -267,11 +278,13 @@ impl Band<'_> {
             xmin.ceil().max(0.0) as usize,
             ((xmax.floor() + 1.0).max(0.0) as usize).min(self.width),
         );
-        let (rows, bvh) = (lo.max(self.first_row)..hi.min(band_end), reader.source.bvh);
+        let rows = lo.max(self.first_row)..hi.min(band_end);
         if rows.is_empty() {
             return;
         }
-        let local = reader.neighbourhood(corners, &mut self.near);
+        let near = reader
+            .neighbourhood(corners, &mut self.near)
+            .then_some(&self.near);
         let mut last: Option<u32> = None;
         for j in rows {
             for i in x0..x1 {
@@ -283,17 +296,7 @@ impl Band<'_> {
                     continue;
                 }
                 let point = corners[0] * wa + corners[1] * wb + corners[2] * wc;
-                let among = match local {
-                    true => {
-                        bvh.closest_among(point, &self.near, last.map(|t| bvh.hit_on(point, t)))
-                    }
-                    false => Among::Tied,
-                };
-                let hit = match among {
-                    Among::Nearest(hit) => Some(hit),
-                    Among::Tied | Among::Empty => reader.nearest(point, last),
-                };
-                let Some(hit) = hit else {
+                let Some(hit) = reader.nearest_within(point, near, last) else {
                     continue;
                 };
                 last = Some(hit.triangle);
