@@ -94,6 +94,16 @@ impl TextureCache {
         })
     }
 
+    /// Keeps `image`, made by the caller (a baked texture), under `key`, so that later users
+    /// of that texture read it from here instead of decoding its encoded copy; its pixels
+    /// count against the allowance as a decoded one would.
+    pub fn insert(&mut self, key: &Path, image: Arc<RgbImage>) {
+        let mut cache = self.shared.lock().unwrap_or_else(PoisonError::into_inner);
+        let pixels = u64::from(image.width()) * u64::from(image.height());
+        cache.pixels_left = cache.pixels_left.saturating_sub(pixels);
+        cache.images.insert(key.to_path_buf(), Ok(image));
+    }
+
     /// The image cached under `key`, or `load`ed within the cache's limits and kept (an
     /// error too, so a bad file is read once). `into_rgb8`: an image decoded as RGB8 (JPEG,
     /// most PNGs) is kept, not copied.
@@ -149,8 +159,24 @@ pub fn bilinear(image: &RgbImage, uv: DVec2) -> DVec3 {
         DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
     };
     let (i, j) = (x0 as i64, y0 as i64);
-    let top = texel(i, j) * (1.0 - fx) + texel(i + 1, j) * fx;
-    let bottom = texel(i, j + 1) * (1.0 - fx) + texel(i + 1, j + 1) * fx;
+    let [t00, t10, t01, t11] = if 0 <= i && i + 1 < w && 0 <= j && j + 1 < h {
+        // The four texels inside the image (all but its last row and column): read
+        // directly, without the wrap-around's four integer divisions per texel.
+        let at = |i: i64, j: i64| {
+            let p = image.get_pixel(i as u32, j as u32).0;
+            DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+        };
+        [at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)]
+    } else {
+        [
+            texel(i, j),
+            texel(i + 1, j),
+            texel(i, j + 1),
+            texel(i + 1, j + 1),
+        ]
+    };
+    let top = t00 * (1.0 - fx) + t10 * fx;
+    let bottom = t01 * (1.0 - fx) + t11 * fx;
     top * (1.0 - fy) + bottom * fy
 }
 
@@ -254,6 +280,53 @@ mod tests {
         assert_eq!(bottom_right, DVec3::new(100.0, 200.0, 0.0));
         let centre = bilinear(&img, DVec2::new(0.5, 0.5));
         assert_eq!(centre, DVec3::new(50.0, 100.0, 0.0));
+    }
+
+    /// Inside the image the four texels are read directly; the result is the one of
+    /// reading every texel through the wrap-around, to the bit, everywhere: inside, on the
+    /// last row and column, across the edges and outside [0, 1].
+    #[test]
+    fn bilinear_inside_is_the_wrapped_lookup() {
+        let (w, h) = (7u32, 5u32);
+        let img = RgbImage::from_fn(w, h, |x, y| {
+            image::Rgb([
+                (37 * x + 11 * y) as u8,
+                (91 * y + 3 * x) as u8,
+                (x * y) as u8,
+            ])
+        });
+        let wrapped = |uv: DVec2| {
+            let x = uv.x.rem_euclid(1.0) * w as f64 - 0.5;
+            let y = (1.0 - uv.y.rem_euclid(1.0)) * h as f64 - 0.5;
+            let (x0, y0) = (x.floor(), y.floor());
+            let (fx, fy) = (x - x0, y - y0);
+            let texel = |i: i64, j: i64| {
+                let p = img.get_pixel(i.rem_euclid(w as i64) as u32, j.rem_euclid(h as i64) as u32);
+                DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+            };
+            let (i, j) = (x0 as i64, y0 as i64);
+            let top = texel(i, j) * (1.0 - fx) + texel(i + 1, j) * fx;
+            let bottom = texel(i, j + 1) * (1.0 - fx) + texel(i + 1, j + 1) * fx;
+            top * (1.0 - fy) + bottom * fy
+        };
+        let (mut inside, mut edge) = (0, 0);
+        for a in -20..=60 {
+            for b in -20..=60 {
+                let uv = DVec2::new(a as f64 / 40.0 + 0.0013, b as f64 / 40.0 - 0.0007);
+                assert_eq!(bilinear(&img, uv), wrapped(uv), "{uv}");
+                let x = uv.x.rem_euclid(1.0) * w as f64 - 0.5;
+                let y = (1.0 - uv.y.rem_euclid(1.0)) * h as f64 - 0.5;
+                if x >= 0.0 && x < (w - 1) as f64 && y >= 0.0 && y < (h - 1) as f64 {
+                    inside += 1;
+                } else {
+                    edge += 1;
+                }
+            }
+        }
+        assert!(
+            inside > 1000 && edge > 1000,
+            "{inside} inside, {edge} at the edges"
+        );
     }
 
     #[test]

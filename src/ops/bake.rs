@@ -74,13 +74,14 @@ pub struct Source<'a> {
 
 /// Bakes every textured material of `result` from `source`. `result`'s material `m` is
 /// assumed to be the source's material `m` (a remesh keeps them), its texture coordinates in
-/// the same charts.
-pub fn bake(result: &mut Mesh, source: &Source) -> BakeReport {
+/// the same charts. The source's images are read through `cache`, and each baked image is
+/// left there under its texture's path, so that whoever reads the result's textures next
+/// (the final metrics, the preview) need not decode them.
+pub fn bake(result: &mut Mesh, source: &Source, cache: &mut TextureCache) -> BakeReport {
     let mut report = BakeReport::default();
     if !result.has_texcoords() || !source.mesh.has_texcoords() {
         return report;
     }
-    let mut cache = TextureCache::new();
     let images: Vec<Option<Arc<RgbImage>>> = (source.mesh.materials.iter())
         .map(|m| cache.get_texture(m.diffuse_texture.as_ref()?).ok())
         .collect();
@@ -99,7 +100,9 @@ pub fn bake(result: &mut Mesh, source: &Source) -> BakeReport {
         let (image, texels) = bake_material(result, m as u32, &reader, background);
         match encode_png(&image) {
             Ok(bytes) => {
-                result.materials[m].diffuse_texture = Some(baked_texture(&texture, bytes, &image));
+                let baked = baked_texture(&texture, bytes, &image);
+                cache.insert(&baked.path, Arc::new(image));
+                result.materials[m].diffuse_texture = Some(baked);
                 report.images += 1;
                 report.texels += texels;
             }
@@ -385,7 +388,7 @@ mod tests {
             mesh: source,
             bvh: &bvh,
         };
-        let report = bake(&mut out, &source);
+        let report = bake(&mut out, &source, &mut TextureCache::new());
         (out, report)
     }
 
@@ -425,6 +428,31 @@ mod tests {
             out.materials[0].diffuse_texture.clone().unwrap().embedded
         };
         assert_eq!(image(1), image(3));
+    }
+
+    /// The baked image the cache keeps for later readers is the image its PNG decodes to,
+    /// and the source's image is the one read from its file.
+    #[test]
+    fn the_cache_holds_what_the_files_decode_to() {
+        let dir = tempfile::tempdir().unwrap();
+        let texture = ramp_png(dir.path());
+        let source = square(16, &texture);
+        let bvh = TriangleBvh::new(&source, (0..source.triangles.len() as u32).collect());
+        let mut out = square(3, &texture);
+        let mut cache = TextureCache::new();
+        let from = Source {
+            mesh: &source,
+            bvh: &bvh,
+        };
+        bake(&mut out, &from, &mut cache);
+        let t = out.materials[0].diffuse_texture.clone().unwrap();
+        let png = image::load_from_memory(&t.embedded.unwrap().0).unwrap();
+        let kept = cache.get(&t.path).unwrap();
+        assert_eq!(*kept, png.into_rgb8());
+        let file = image::open(&texture).unwrap().into_rgb8();
+        assert_eq!(*cache.get(&texture).unwrap(), file);
+        // Not the source's image under another name: the bake changed it.
+        assert_ne!(*kept, file);
     }
 
     #[test]

@@ -76,7 +76,7 @@ pub fn run_recipe(
         total: total_stages,
     };
     if !recipe.metrics.enabled && !recipe.preview.enabled {
-        let cx = StepContext::new(seam_reference_of(recipe, mesh));
+        let cx = StepContext::new(seam_reference_of(recipe, mesh), TextureCache::new());
         return Ok(RunOutcome {
             steps: run_steps_with(recipe, mesh, stages, cx, &mut NoHooks)?,
             metrics: Value::Null,
@@ -100,12 +100,15 @@ pub fn run_recipe(
             scope,
             recipe,
         };
-        let cx = StepContext::new(needs_seam_reference(recipe).then_some(input));
+        // One decoded copy of each texture for the steps, the metrics and the preview.
+        let textures = TextureCache::new();
+        let seam_reference = needs_seam_reference(recipe).then_some(input);
+        let cx = StepContext::new(seam_reference, textures.clone());
         let steps = run_steps_with(recipe, mesh, stages, cx, &mut hooks)?;
         let reference = hooks.schedule.finish();
         // The preparation's threads freed their working memory in arenas of their own.
         crate::memory::release_freed();
-        let (metrics, preview) = measure_and_draw(recipe, mesh, &reference, stages);
+        let (metrics, preview) = measure_and_draw(recipe, mesh, &reference, stages, textures);
         Ok(RunOutcome {
             steps,
             metrics,
@@ -118,15 +121,15 @@ pub fn run_recipe(
 /// prepared already: each is parallel inside but leaves part of the second core idle, and
 /// neither reads what the other computes. Otherwise one after the other: the metrics then
 /// build the reference's topology, which with the preview's buffers would raise the run's
-/// memory peak (docs/face-scan.md).
+/// memory peak (docs/face-scan.md). Both read textures through `textures`, the run's cache,
+/// where the steps may have left them decoded.
 fn measure_and_draw(
     recipe: &Recipe,
     mesh: &Mesh,
     reference: &FinalReference<'_>,
     stages: Stages<'_>,
+    textures: TextureCache,
 ) -> (Value, Option<Preview>) {
-    // One decoded copy of each texture for both (see `TextureCache`).
-    let textures = TextureCache::new();
     let measure = || reference.measure_with(mesh, &mut textures.clone());
     let draw = || draw_preview(recipe, mesh, reference, stages, &mut textures.clone());
     if reference.has_topology() {
@@ -178,7 +181,7 @@ pub fn run_steps(
         first: first_stage,
         total: total_stages,
     };
-    let cx = StepContext::new(seam_reference_of(recipe, mesh));
+    let cx = StepContext::new(seam_reference_of(recipe, mesh), TextureCache::new());
     run_steps_with(recipe, mesh, stages, cx, &mut NoHooks)
 }
 

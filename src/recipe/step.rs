@@ -8,6 +8,7 @@
 
 use super::Step;
 use crate::mesh::Mesh;
+use crate::metrics::TextureCache;
 use crate::ops;
 use serde_json::Value;
 use std::sync::Arc;
@@ -64,15 +65,21 @@ pub struct StepContext {
     /// The connectivity a `relax` or `fair` step leaves for the next one (see
     /// [`RecipeStep::uses_fairing_connectivity`]).
     pub fairing: Option<ops::fair::Connectivity>,
+    /// Decoded texture images, shared by the steps that read them (`remesh`'s bake) and the
+    /// final metrics and preview, so that each image is decoded once in the run and a baked
+    /// one not at all.
+    pub textures: TextureCache,
     /// A step has run already.
     pub(super) changed: bool,
 }
 
 impl StepContext {
-    /// A context whose seam reference is `input` (see [`StepContext::seam_reference`]).
-    pub fn new(seam_reference: Option<Arc<Mesh>>) -> StepContext {
+    /// A context whose seam reference is `input` (see [`StepContext::seam_reference`]) and
+    /// whose texture cache is `textures` (a clone shares its images).
+    pub fn new(seam_reference: Option<Arc<Mesh>>, textures: TextureCache) -> StepContext {
         StepContext {
             seam_reference,
+            textures,
             ..StepContext::default()
         }
     }
@@ -142,7 +149,8 @@ impl RecipeStep for ops::decimate::DecimateParams {
 
 impl RecipeStep for ops::remesh::RemeshParams {
     fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
-        let (out, report) = ops::remesh::remesh(mesh, self).map_err(|e| e.to_string())?;
+        let (out, report) =
+            ops::remesh::remesh_with(mesh, self, &mut cx.textures).map_err(|e| e.to_string())?;
         cx.replaced(std::mem::replace(mesh, out));
         Ok(figures(report))
     }

@@ -25,6 +25,7 @@ pub mod walk;
 use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
+use crate::metrics::TextureCache;
 use lines::{LineKind, Lines};
 use quality::AngleQuality;
 use serde::{Deserialize, Serialize};
@@ -441,6 +442,17 @@ fn surface_area(mesh: &Mesh) -> f64 {
 
 /// Remeshes `mesh` (already validated parameters) into a new mesh.
 pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport), RemeshError> {
+    remesh_with(mesh, params, &mut TextureCache::new())
+}
+
+/// [`remesh`], with the bake (`bake_texture`) reading the input's images from `textures`
+/// and leaving the baked ones there (a recipe run shares one cache with its final metrics
+/// and preview).
+pub fn remesh_with(
+    mesh: &Mesh,
+    params: &RemeshParams,
+    textures: &mut TextureCache,
+) -> Result<(Mesh, RemeshReport), RemeshError> {
     let start = Instant::now();
     if mesh.triangles.is_empty() {
         return Err(RemeshError::Empty);
@@ -487,7 +499,7 @@ pub fn remesh(mesh: &Mesh, params: &RemeshParams) -> Result<(Mesh, RemeshReport)
     let mut out = export::export(&c, &lines, mesh, &topo, &chart_of_input, &bvh);
     let bake = params.bake_texture.then(|| {
         let source = crate::ops::bake::Source { mesh, bvh: &bvh };
-        crate::ops::bake::bake(&mut out, &source)
+        crate::ops::bake::bake(&mut out, &source, textures)
     });
     let report = RemeshReport {
         method: params.method,
