@@ -241,18 +241,22 @@ fn render_with(
             },
         ),
     ];
-    for (i, surface) in panels.iter().enumerate() {
-        let panel = if i == 0 { "input" } else { "result" };
-        let x0 = i as u32 * size;
-        draw_panel(
+    let ss = options.supersample;
+    let seen = Seen::rasterise(input, "input", &camera, ss, size)?;
+    shade_panel(&panels[0], &seen, &camera, ss, size, &mut image, 0);
+    drop(seen);
+    // The result's two panels see the same triangles at the same pixels.
+    let seen = Seen::rasterise(result, "result", &camera, ss, size)?;
+    for (i, surface) in panels.iter().enumerate().skip(1) {
+        shade_panel(
             surface,
-            panel,
+            &seen,
             &camera,
-            options.supersample,
+            ss,
             size,
             &mut image,
-            x0,
-        )?;
+            i as u32 * size,
+        );
     }
     draw_labels(&mut image, &layout, size, &heat);
 
@@ -348,35 +352,53 @@ fn draw_labels(image: &mut RgbImage, layout: &Layout, size: u32, heat: &Heat) {
     draw_colour_bar(image, layout, 2 * size, &format!("{}%", heat.scale_label));
 }
 
-/// Draws one surface into the panel whose left edge is column `x0`.
-fn draw_panel(
+/// What a panel's camera sees of a mesh: for every sample (`ss` × `ss` per pixel of a
+/// `size`² panel) the nearest triangle and where in it.
+struct Seen {
+    g: raster::GBuffer,
+}
+
+impl Seen {
+    fn rasterise(
+        mesh: &Mesh,
+        panel: &'static str,
+        camera: &Camera,
+        ss: u32,
+        size: u32,
+    ) -> Result<Seen, PreviewError> {
+        let cam = camera.scaled(ss as f64);
+        let n = (size * ss) as usize;
+        let vertices: Vec<[f64; 3]> = mesh
+            .positions
+            .par_iter()
+            .map(|&p| cam.project(p).to_array())
+            .collect();
+        let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
+            .map(|t| mesh.triangle_vertices(t))
+            .collect();
+        let pixels = (n * n) as u64;
+        raster::rasterise_within(&vertices, &triangles, n, n, MAX_OVERDRAW * pixels)
+            .map(|g| Seen { g })
+            .map_err(|over| PreviewError::Overdraw {
+                panel,
+                depth: over.tests.div_ceil(pixels),
+            })
+    }
+}
+
+/// Shades `surface` where `seen` (its mesh, through `camera`) shows it, into the panel of
+/// `image` starting at column `x0`, averaging each pixel's samples.
+fn shade_panel(
     surface: &Surface,
-    panel: &'static str,
+    seen: &Seen,
     camera: &Camera,
     ss: u32,
     size: u32,
     image: &mut RgbImage,
     x0: u32,
-) -> Result<(), PreviewError> {
-    let mesh = surface.mesh;
+) {
+    let (g, n) = (&seen.g, (size * ss) as usize);
     let cam = camera.scaled(ss as f64);
-    let n = (size * ss) as usize;
-    let vertices: Vec<[f64; 3]> = mesh
-        .positions
-        .par_iter()
-        .map(|&p| cam.project(p).to_array())
-        .collect();
-    let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
-        .map(|t| mesh.triangle_vertices(t))
-        .collect();
-    let pixels = (n * n) as u64;
-    let g = raster::rasterise_within(&vertices, &triangles, n, n, MAX_OVERDRAW * pixels).map_err(
-        |over| PreviewError::Overdraw {
-            panel,
-            depth: over.tests.div_ceil(pixels),
-        },
-    )?;
-    drop((vertices, triangles));
     let towards_light = -cam.forward;
     let ss = ss as usize;
     let background = BACKGROUND.map(f64::from);
@@ -413,7 +435,6 @@ fn draw_panel(
             image.put_pixel(x0 + col as u32, row as u32, Rgb(p));
         }
     }
-    Ok(())
 }
 
 /// The colour bar along the bottom band of the panel starting at column `x0`: the ramp,
