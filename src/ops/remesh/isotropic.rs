@@ -257,9 +257,9 @@ pub fn flip_angles(c: &mut Corners, sc: &mut Scratch) -> usize {
 
 /// Tangential relaxation: a free vertex moves towards the area-weighted centroid of its
 /// faces within its tangent plane, a line vertex along its line ([`relaxed_on_line`]). A
-/// move that would turn a face over is not made. With an
-/// adaptive size, a face's weight is its area over its squared size (pmp-library's
-/// weighting), so vertices do not drift towards the large triangles of the coarse parts.
+/// move that would turn a face over is not made. With an adaptive size, a face's weight is
+/// its area over its squared size (pmp-library's weighting), so vertices do not drift
+/// towards the large triangles of the coarse parts.
 pub fn relax(c: &mut Corners, lines: &Lines, sizing: &Sizing, before: &Placement) {
     c.pos = (0..c.pos.len() as u32)
         .into_par_iter()
@@ -385,10 +385,11 @@ fn relaxed(c: &Corners, lines: &Lines, sizing: &Sizing, v: u32, sc: &mut Scratch
 /// than [`LINE_MOVE_QUALITY`] (or than the thinnest around it now, if that is thinner).
 ///
 /// Why on the line at once: a move along the chord that the round's projection then
-/// refused (a face would have turned) left the vertex off its line, so a seam vertex off
-/// the input's seam (esp32cam at 1 % of the diagonal: 16). Why the quality floor: checked
-/// against its neighbours' old positions while they move too, a border vertex put on a
-/// ragged border beside a free vertex made faces of 0.01° on james at 0.5 %.
+/// refused (a face would have turned) left the vertex off its line, a seam vertex off the
+/// input's seam, which puts one chart's photo on the other side. Why the quality floor: a
+/// move is checked against its neighbours' old positions while they move too, and a border
+/// vertex put on a ragged border beside a moving free vertex made needles of hundredths of
+/// a degree (docs/remeshing.md, "Line vertices on their lines").
 fn relaxed_on_line(c: &Corners, lines: &Lines, v: u32, sc: &mut Scratch) -> DVec3 {
     let p = c.pos[v as usize];
     let Some([x, y]) = ops::line_neighbours(c, v, sc) else {
