@@ -382,13 +382,18 @@ mod tests {
     }
 
     fn baked(result: &Mesh, source: &Mesh) -> (Mesh, BakeReport) {
+        baked_into(result, source, &mut TextureCache::new())
+    }
+
+    /// [`baked`], reading and leaving images in `cache`.
+    fn baked_into(result: &Mesh, source: &Mesh, cache: &mut TextureCache) -> (Mesh, BakeReport) {
         let bvh = TriangleBvh::new(source, (0..source.triangles.len() as u32).collect());
         let mut out = result.clone();
         let source = Source {
             mesh: source,
             bvh: &bvh,
         };
-        let report = bake(&mut out, &source, &mut TextureCache::new());
+        let report = bake(&mut out, &source, cache);
         (out, report)
     }
 
@@ -436,15 +441,8 @@ mod tests {
     fn the_cache_holds_what_the_files_decode_to() {
         let dir = tempfile::tempdir().unwrap();
         let texture = ramp_png(dir.path());
-        let source = square(16, &texture);
-        let bvh = TriangleBvh::new(&source, (0..source.triangles.len() as u32).collect());
-        let mut out = square(3, &texture);
         let mut cache = TextureCache::new();
-        let from = Source {
-            mesh: &source,
-            bvh: &bvh,
-        };
-        bake(&mut out, &from, &mut cache);
+        let (out, _) = baked_into(&square(3, &texture), &square(16, &texture), &mut cache);
         let t = out.materials[0].diffuse_texture.clone().unwrap();
         let png = image::load_from_memory(&t.embedded.unwrap().0).unwrap();
         let kept = cache.get(&t.path).unwrap();

@@ -242,21 +242,13 @@ fn render_with(
         ),
     ];
     let ss = options.supersample;
-    let seen = Seen::rasterise(input, "input", &camera, ss, size)?;
-    shade_panel(&panels[0], &seen, &camera, ss, size, &mut image, 0);
-    drop(seen);
+    let g = rasterise_panel(input, "input", &camera, ss, size)?;
+    shade_panel(&panels[0], &g, &camera, ss, size, &mut image, 0);
+    drop(g);
     // The result's two panels see the same triangles at the same pixels.
-    let seen = Seen::rasterise(result, "result", &camera, ss, size)?;
+    let g = rasterise_panel(result, "result", &camera, ss, size)?;
     for (i, surface) in panels.iter().enumerate().skip(1) {
-        shade_panel(
-            surface,
-            &seen,
-            &camera,
-            ss,
-            size,
-            &mut image,
-            i as u32 * size,
-        );
+        shade_panel(surface, &g, &camera, ss, size, &mut image, i as u32 * size);
     }
     draw_labels(&mut image, &layout, size, &heat);
 
@@ -352,52 +344,46 @@ fn draw_labels(image: &mut RgbImage, layout: &Layout, size: u32, heat: &Heat) {
     draw_colour_bar(image, layout, 2 * size, &format!("{}%", heat.scale_label));
 }
 
-/// What a panel's camera sees of a mesh: for every sample (`ss` × `ss` per pixel of a
+/// What a panel's camera sees of `mesh`: for every sample (`ss` × `ss` per pixel of a
 /// `size`² panel) the nearest triangle and where in it.
-struct Seen {
-    g: raster::GBuffer,
+fn rasterise_panel(
+    mesh: &Mesh,
+    panel: &'static str,
+    camera: &Camera,
+    ss: u32,
+    size: u32,
+) -> Result<raster::GBuffer, PreviewError> {
+    let cam = camera.scaled(ss as f64);
+    let n = (size * ss) as usize;
+    let vertices: Vec<[f64; 3]> = mesh
+        .positions
+        .par_iter()
+        .map(|&p| cam.project(p).to_array())
+        .collect();
+    let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
+        .map(|t| mesh.triangle_vertices(t))
+        .collect();
+    let pixels = (n * n) as u64;
+    raster::rasterise_within(&vertices, &triangles, n, n, MAX_OVERDRAW * pixels).map_err(|over| {
+        PreviewError::Overdraw {
+            panel,
+            depth: over.tests.div_ceil(pixels),
+        }
+    })
 }
 
-impl Seen {
-    fn rasterise(
-        mesh: &Mesh,
-        panel: &'static str,
-        camera: &Camera,
-        ss: u32,
-        size: u32,
-    ) -> Result<Seen, PreviewError> {
-        let cam = camera.scaled(ss as f64);
-        let n = (size * ss) as usize;
-        let vertices: Vec<[f64; 3]> = mesh
-            .positions
-            .par_iter()
-            .map(|&p| cam.project(p).to_array())
-            .collect();
-        let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
-            .map(|t| mesh.triangle_vertices(t))
-            .collect();
-        let pixels = (n * n) as u64;
-        raster::rasterise_within(&vertices, &triangles, n, n, MAX_OVERDRAW * pixels)
-            .map(|g| Seen { g })
-            .map_err(|over| PreviewError::Overdraw {
-                panel,
-                depth: over.tests.div_ceil(pixels),
-            })
-    }
-}
-
-/// Shades `surface` where `seen` (its mesh, through `camera`) shows it, into the panel of
-/// `image` starting at column `x0`, averaging each pixel's samples.
+/// Shades `surface` where `g` (its mesh through `camera`, [`rasterise_panel`]) shows it,
+/// into the panel of `image` starting at column `x0`, averaging each pixel's samples.
 fn shade_panel(
     surface: &Surface,
-    seen: &Seen,
+    g: &raster::GBuffer,
     camera: &Camera,
     ss: u32,
     size: u32,
     image: &mut RgbImage,
     x0: u32,
 ) {
-    let (g, n) = (&seen.g, (size * ss) as usize);
+    let n = (size * ss) as usize;
     let cam = camera.scaled(ss as f64);
     let towards_light = -cam.forward;
     let ss = ss as usize;

@@ -403,10 +403,10 @@ fn relaxed_on_line(c: &Corners, lines: &Lines, v: u32, sc: &mut Scratch) -> DVec
         NIL => ops::fan_keeps_orientation(c, v, along, sc).then_some(along),
         seg => {
             let (target, _) = lines.project(along, seg);
-            let floor = LINE_MOVE_QUALITY.min(ops::fan_min_quality(c, v, p, sc));
+            let floor = |sc: &mut Scratch| LINE_MOVE_QUALITY.min(ops::fan_min_quality(c, v, p, sc));
             (ops::fan_keeps_orientation(c, v, target, sc)
-                && ops::fan_min_quality(c, v, target, sc) >= floor)
-                .then_some(target)
+                && ops::fan_min_quality(c, v, target, sc) >= floor(sc))
+            .then_some(target)
         }
     };
     ok.unwrap_or(p)
