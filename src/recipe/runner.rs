@@ -222,6 +222,9 @@ impl StepHooks for MetricsHooks<'_, '_, '_> {
             cx.fairing = self
                 .schedule
                 .share_input_topology(mesh, |t| ops::fair::Connectivity::of(mesh, t));
+            // The input's topology is gone; its memory would otherwise stay in the
+            // allocator's arenas under the fairing's working arrays.
+            crate::memory::release_freed();
         }
         let crop_follows = self.recipe.steps[index..]
             .iter()

@@ -142,8 +142,27 @@ fn quality_squared(cross: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
 /// [`BORDER_TILT_DEGREES`] from where it started.
 #[inline]
 pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) -> MoveCheck {
-    let n_old = (old[1] - old[0]).cross(old[2] - old[0]);
-    let n_new = (new[1] - new[0]).cross(new[2] - new[0]);
+    check_crosses(cross_of(old), || old, cross_of(new), new, reference)
+}
+
+/// A triangle's cross product `(b − a) × (c − a)`: twice its area along its normal.
+#[inline]
+pub fn cross_of([a, b, c]: [DVec3; 3]) -> DVec3 {
+    (b - a).cross(c - a)
+}
+
+/// [`check_triangle`] given both cross products ([`cross_of`]) of the triangle, `n_old` at
+/// `old` and `n_new` at `new`: the same rule, for callers that keep the cross products
+/// from one iteration to the next. `old` is asked for only when the new triangle is a
+/// needle (the quality is compared).
+#[inline]
+pub fn check_crosses(
+    n_old: DVec3,
+    old: impl FnOnce() -> [DVec3; 3],
+    n_new: DVec3,
+    new: [DVec3; 3],
+    reference: Reference,
+) -> MoveCheck {
     if n_old.length_squared() > 0.0 && n_new.dot(n_old) < 0.0 {
         return MoveCheck::Flip;
     }
@@ -155,8 +174,11 @@ pub fn check_triangle(old: [DVec3; 3], new: [DVec3; 3], reference: Reference) ->
         return MoveCheck::Flip;
     }
     let q_new = quality_squared(n_new, new[0], new[1], new[2]);
-    if q_new < MIN_QUALITY * MIN_QUALITY && q_new < quality_squared(n_old, old[0], old[1], old[2]) {
-        return MoveCheck::Degenerate;
+    if q_new < MIN_QUALITY * MIN_QUALITY {
+        let [a, b, c] = old();
+        if q_new < quality_squared(n_old, a, b, c) {
+            return MoveCheck::Degenerate;
+        }
     }
     MoveCheck::Ok
 }

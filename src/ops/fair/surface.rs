@@ -8,7 +8,8 @@
 //! are translation invariant and this keeps them accurate far from the origin.
 
 use super::guards::{
-    Fan, GuardCounts, Guarded, MoveCheck, Reference, check_triangle, guarded_move,
+    Fan, GuardCounts, Guarded, MoveCheck, Reference, check_crosses, check_triangle, cross_of,
+    guarded_move,
 };
 use super::neighbourhood::Neighbourhood;
 use super::positive;
@@ -517,6 +518,12 @@ pub struct FastScratch {
     level: Vec<u8>,
     /// Why it was first shortened.
     why: Vec<MoveCheck>,
+    /// Each triangle's cross product ([`cross_of`]) at the current positions, kept from one
+    /// iteration to the next (empty until the step's first commit), so that the flip check
+    /// of every triangle gathers its corners once, at the candidate positions.
+    cross: Vec<DVec3>,
+    /// Whether a vertex's candidate differs from its current position.
+    moved: Vec<bool>,
 }
 
 /// One curvature iteration of the fast schedule: Jacobi (every vertex from the positions
@@ -600,28 +607,55 @@ fn fast_candidates(
 /// Vertices per chunk of the fixed-order parallel reductions.
 const CHUNK: usize = 4096;
 
-/// Triangles that a move from `old` to `new` flips or degenerates, in index order.
-fn bad_triangles(
+/// Every triangle's check for the move from `old` to `new`, in index order: the bad ones.
+/// `cross` holds each triangle's cross product at `old` and is left holding it at `new`;
+/// a triangle none of whose corners `moved` is not checked (nothing changed).
+fn bad_triangles_all(
     old: &[DVec3],
     new: &[DVec3],
-    triangles: impl IndexedParallelIterator<Item = u32>,
+    moved: &[bool],
+    cross: &mut [DVec3],
     it: &Interior,
 ) -> Vec<(u32, MoveCheck)> {
-    triangles
-        .filter_map(|t| {
-            let [a, b, c] = it.triangles[t as usize].map(|v| v as usize);
-            if new[a] == old[a] && new[b] == old[b] && new[c] == old[c] {
+    cross
+        .par_iter_mut()
+        .enumerate()
+        .filter_map(|(t, cross)| {
+            let [a, b, c] = it.triangles[t].map(|v| v as usize);
+            if !(moved[a] || moved[b] || moved[c]) {
                 return None;
             }
-            let reference = it.references[t as usize];
-            match check_triangle(
-                [old[a], old[b], old[c]],
-                [new[a], new[b], new[c]],
-                reference,
-            ) {
+            let at_new = [new[a], new[b], new[c]];
+            let n_new = cross_of(at_new);
+            let n_old = std::mem::replace(cross, n_new);
+            let at_old = || [old[a], old[b], old[c]];
+            match check_crosses(n_old, at_old, n_new, at_new, it.references[t]) {
                 MoveCheck::Ok => None,
-                bad => Some((t, bad)),
+                bad => Some((t as u32, bad)),
             }
+        })
+        .collect()
+}
+
+/// [`bad_triangles_all`] for some triangles (ascending) after their corners' moves were
+/// shortened: each with its cross product at `new`, which the caller writes back.
+fn bad_triangles_again(
+    old: &[DVec3],
+    new: &[DVec3],
+    triangles: Vec<u32>,
+    it: &Interior,
+) -> Vec<(u32, DVec3, MoveCheck)> {
+    triangles
+        .into_par_iter()
+        .map(|t| {
+            let [a, b, c] = it.triangles[t as usize].map(|v| v as usize);
+            let at_new = [new[a], new[b], new[c]];
+            let check = if new[a] == old[a] && new[b] == old[b] && new[c] == old[c] {
+                MoveCheck::Ok
+            } else {
+                check_triangle([old[a], old[b], old[c]], at_new, it.references[t as usize])
+            };
+            (t, cross_of(at_new), check)
         })
         .collect()
 }
@@ -643,6 +677,8 @@ fn commit_parallel(
         new,
         level,
         why,
+        cross,
+        moved,
         ..
     } = scratch;
     new.clear();
@@ -651,7 +687,27 @@ fn commit_parallel(
     level.resize(n, 0);
     why.clear();
     why.resize(n, MoveCheck::Ok);
-    shorten_bad_moves(positions, candidate, new, level, why, it);
+    if cross.len() != it.triangles.len() {
+        *cross = it
+            .triangles
+            .par_iter()
+            .map(|tri| cross_of(tri.map(|v| positions[v as usize])))
+            .collect();
+    }
+    debug_assert!(
+        it.triangles
+            .iter()
+            .zip(cross.iter())
+            .all(|(tri, c)| { cross_of(tri.map(|v| positions[v as usize])) == *c })
+    );
+    moved.clear();
+    moved.par_extend(new.par_iter().zip(&*positions).map(|(n, o)| n != o));
+    let moves = Moves {
+        old: positions,
+        candidate,
+        moved,
+    };
+    shorten_bad_moves(&moves, new, level, why, cross, it);
     for (l, w) in level.iter().zip(why.iter()) {
         match *l {
             0 => {}
@@ -674,15 +730,19 @@ fn commit_parallel(
 /// `why` keeps the first reason, and only the triangles around those vertices are checked
 /// again.
 fn shorten_bad_moves(
-    old: &[DVec3],
-    candidate: &[DVec3],
+    moves: &Moves,
     new: &mut [DVec3],
     level: &mut [u8],
     why: &mut [MoveCheck],
+    cross: &mut [DVec3],
     it: &Interior,
 ) {
-    let all = (0..it.triangles.len() as u32).into_par_iter();
-    let mut bad = bad_triangles(old, new, all, it);
+    let Moves {
+        old,
+        candidate,
+        moved,
+    } = *moves;
+    let mut bad = bad_triangles_all(old, new, moved, cross, it);
     let mut touched: Vec<u32> = Vec::new();
     while !bad.is_empty() {
         touched.clear();
@@ -717,8 +777,23 @@ fn shorten_bad_moves(
             .collect();
         around.sort_unstable();
         around.dedup();
-        bad = bad_triangles(old, new, around.into_par_iter(), it);
+        let checked = bad_triangles_again(old, new, around, it);
+        bad.clear();
+        for (t, n_new, check) in checked {
+            cross[t as usize] = n_new;
+            if check != MoveCheck::Ok {
+                bad.push((t, check));
+            }
+        }
     }
+}
+
+/// One iteration's moves: from `old` towards `candidate`, `moved` where they differ.
+#[derive(Clone, Copy)]
+struct Moves<'a> {
+    old: &'a [DVec3],
+    candidate: &'a [DVec3],
+    moved: &'a [bool],
 }
 
 /// The sum and the largest of the distances from `old` to `new`, in fixed-size chunks
