@@ -383,7 +383,6 @@ fn weighted_fan_centroid(
     }
 }
 
-/// Moving `v` to `p` keeps every face around it facing the way it faced and not degenerate.
 /// The worst shape quality (`decimate::guards::quality`) of `v`'s faces with `v` at `p`.
 pub fn fan_min_quality(c: &Corners, v: u32, p: DVec3, sc: &mut Scratch) -> f64 {
     c.fan(v, &mut sc.hs);
@@ -399,6 +398,7 @@ pub fn fan_min_quality(c: &Corners, v: u32, p: DVec3, sc: &mut Scratch) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// Moving `v` to `p` keeps every face around it facing the way it faced and not degenerate.
 pub fn fan_keeps_orientation(c: &Corners, v: u32, p: DVec3, sc: &mut Scratch) -> bool {
     c.fan(v, &mut sc.hs);
     sc.hs.iter().all(|&h| {
