@@ -249,11 +249,17 @@ pub fn process_scan_with_options(
         steps,
         metrics,
         preview,
-    } = run_recipe(recipe, &mut mesh, progress, 1, total_stages).map_err(|source| {
-        ProcessError::Step {
-            input: input.to_path_buf(),
-            source,
-        }
+    } = run_recipe(
+        recipe,
+        &mut mesh,
+        &process_options.limits,
+        progress,
+        1,
+        total_stages,
+    )
+    .map_err(|source| ProcessError::Step {
+        input: input.to_path_buf(),
+        source,
     })?;
 
     progress.stage(total_stages - 1, total_stages, "write");

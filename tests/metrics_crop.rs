@@ -5,7 +5,7 @@ mod common;
 
 use glam::DVec3;
 use scanmill::geom::segment_distance;
-use scanmill::mesh::{Mesh, Topology};
+use scanmill::mesh::{InputLimits, Mesh, Topology};
 use scanmill::metrics::{self, MetricsOptions, TextureDeviation};
 use scanmill::ops::crop::{CropMode, CropParams, crop};
 use scanmill::recipe::Recipe;
@@ -167,7 +167,15 @@ fn report_carries_topology_before_and_after_and_texture_is_unchanged_by_crop() {
     );
     let recipe = Recipe::from_toml(&text, Path::new("crop.toml")).unwrap();
     let mut mesh = input.clone();
-    let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
+    let out = run_recipe(
+        &recipe,
+        &mut mesh,
+        &InputLimits::default(),
+        &NoProgress,
+        0,
+        1,
+    )
+    .unwrap();
     let step = out.steps[0].metrics.as_ref().unwrap();
     let topo = &step["topology"];
     assert_eq!(topo["before"]["boundary_edges"], 552);

@@ -4,7 +4,7 @@
 
 mod common;
 
-use scanmill::mesh::LoadOptions;
+use scanmill::mesh::{InputLimits, LoadOptions};
 use scanmill::recipe::Recipe;
 use scanmill::recipe::runner::{NoProgress, run_recipe};
 use std::path::Path;
@@ -15,7 +15,15 @@ fn texture_deviation_after(step: &str) -> (f64, serde_json::Value) {
     let mut mesh = common::scan(JAMES);
     let text = format!("[metrics]\nsamples = 20000\n[[step]]\nkind = \"{step}\"\n");
     let recipe = Recipe::from_toml(&text, Path::new("r.toml")).unwrap();
-    let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
+    let out = run_recipe(
+        &recipe,
+        &mut mesh,
+        &InputLimits::default(),
+        &NoProgress,
+        0,
+        1,
+    )
+    .unwrap();
     let topology = &out.metrics["topology"];
     // Seams and wedges are untouched: only texture coordinate values change.
     assert_eq!(
@@ -45,7 +53,15 @@ fn relax_then_fair_carry_the_texture_once_from_the_scanned_surface() {
     let mut mesh = common::scan(JAMES);
     let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"relax\"\n[[step]]\nkind = \"fair\"\n[[step]]\nkind = \"normals\"\n";
     let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
-    let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
+    let out = run_recipe(
+        &recipe,
+        &mut mesh,
+        &InputLimits::default(),
+        &NoProgress,
+        0,
+        1,
+    )
+    .unwrap();
     // One read-back, after the last vertex-moving step of the run.
     assert!(out.steps[0].figures.get("texture_follow").is_none());
     let follow = &out.steps[1].figures["texture_follow"];
@@ -69,10 +85,40 @@ fn seam_fix_cuts_no_seams_into_a_seamless_face() {
     let mut mesh = common::scan_with("textured/facefuns_di3d_face/example.obj", &options);
     let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\n[[step]]\nkind = \"seam_fix\"\n";
     let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
-    let out = run_recipe(&recipe, &mut mesh, &NoProgress, 0, 1).unwrap();
+    let out = run_recipe(
+        &recipe,
+        &mut mesh,
+        &InputLimits::default(),
+        &NoProgress,
+        0,
+        1,
+    )
+    .unwrap();
     let fix = &out.steps[1].figures;
     assert!(fix["repaired"].as_u64().unwrap() > 0, "{fix}");
     assert_eq!(fix["corners_split"], 0, "{fix}");
     assert_eq!(out.metrics["topology"]["after"]["texture_seam_edges"], 0);
     assert_eq!(out.metrics["topology"]["cracks"], 0);
+}
+
+#[test]
+fn the_run_decodes_textures_within_the_limits_it_is_given() {
+    // The metrics and the preview decode the photo again after the load; they must hold
+    // the job's limits, not the defaults. James's photo has more pixels than this allowance.
+    let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"normals\"\n";
+    let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
+    let tight = InputLimits {
+        max_texture_pixels: 1000,
+        ..InputLimits::default()
+    };
+    let measured = |limits: &InputLimits| {
+        let mut mesh = common::scan(JAMES);
+        let out = run_recipe(&recipe, &mut mesh, limits, &NoProgress, 0, 1).unwrap();
+        out.metrics["texture"].clone()
+    };
+    let within_defaults = measured(&InputLimits::default());
+    assert!(within_defaults["mean"].is_number(), "{within_defaults}");
+    let within_tight = measured(&tight);
+    let reason = within_tight["reason"].as_str().unwrap_or_default();
+    assert!(reason.contains("pixels"), "{within_tight}");
 }

@@ -748,6 +748,7 @@ fn recipe(s: &Scratch, input: &[u8]) -> Verdict {
     match scanmill::recipe::runner::run_recipe(
         &recipe,
         &mut mesh,
+        &scanmill::mesh::InputLimits::default(),
         &scanmill::recipe::runner::NoProgress,
         0,
         stages,

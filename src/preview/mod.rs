@@ -171,7 +171,17 @@ pub fn render(
     result: &Mesh,
     options: &PreviewOptions,
 ) -> Result<Preview, PreviewError> {
-    render_with(input, None, result, options, &mut TextureCache::new())
+    render_with_cache(input, result, options, &mut TextureCache::new())
+}
+
+/// [`render`] reading the textures through `textures` (the run's, within the job's limits).
+pub fn render_with_cache(
+    input: &Mesh,
+    result: &Mesh,
+    options: &PreviewOptions,
+    textures: &mut TextureCache,
+) -> Result<Preview, PreviewError> {
+    render_with(input, None, result, options, textures)
 }
 
 /// [`render`] with a closest-point index over `input` already built (the metrics' one):

@@ -5,7 +5,7 @@
 
 use super::step::{self, RecipeStep, StepContext};
 use super::{Recipe, Step};
-use crate::mesh::Mesh;
+use crate::mesh::{InputLimits, Mesh};
 use crate::metrics::TextureCache;
 pub use crate::metrics::schedule::metrics_value;
 use crate::metrics::schedule::{FinalReference, ReferenceSchedule};
@@ -62,10 +62,12 @@ struct Stages<'a> {
 /// against the input and draws the preview (the input is kept while the steps run if
 /// either wants it). `progress` gets one more stage after the steps, "preview", when the
 /// recipe draws one. Which mesh the metrics measure against, and when it is prepared, is
-/// `metrics::schedule`'s business.
+/// `metrics::schedule`'s business. Every texture the steps, the metrics and the preview
+/// decode stays within `limits`, the limits the scan was loaded under.
 pub fn run_recipe(
     recipe: &Recipe,
     mesh: &mut Mesh,
+    limits: &InputLimits,
     progress: &dyn Progress,
     first_stage: usize,
     total_stages: usize,
@@ -75,8 +77,10 @@ pub fn run_recipe(
         first: first_stage,
         total: total_stages,
     };
+    // One decoded copy of each texture for the steps, the metrics and the preview.
+    let textures = TextureCache::with_limits(limits.clone());
     if !recipe.metrics.enabled && !recipe.preview.enabled {
-        let cx = StepContext::new(seam_reference_of(recipe, mesh), TextureCache::new());
+        let cx = StepContext::new(seam_reference_of(recipe, mesh), textures);
         return Ok(RunOutcome {
             steps: run_steps_with(recipe, mesh, stages, cx, &mut NoHooks)?,
             metrics: Value::Null,
@@ -100,8 +104,6 @@ pub fn run_recipe(
             scope,
             recipe,
         };
-        // One decoded copy of each texture for the steps, the metrics and the preview.
-        let textures = TextureCache::new();
         let seam_reference = needs_seam_reference(recipe).then_some(input);
         let cx = StepContext::new(seam_reference, textures.clone());
         let steps = run_steps_with(recipe, mesh, stages, cx, &mut hooks)?;
@@ -159,7 +161,7 @@ fn draw_preview(
         Some(Ok(prepared)) => {
             preview::render_with_textures(prepared.index(), mesh, &recipe.preview, textures)
         }
-        _ => preview::render(reference.reference, mesh, &recipe.preview),
+        _ => preview::render_with_cache(reference.reference, mesh, &recipe.preview, textures),
     };
     drawn
         .inspect(|p| tracing::info!(ms = p.figures.render_ms, "preview drawn"))
@@ -359,7 +361,7 @@ mod tests {
             "[metrics]\nsamples = 2000\n[[step]]\nkind = \"crop\"\nabs_max = [2, 2, 0.5]\nmode = \"clip\"\nmetrics = true\n[[step]]\nkind = \"normals\"\n",
         );
         let mut mesh = uv_sphere(1.0, 12, 16);
-        let out = run_recipe(&r, &mut mesh, &NoProgress, 1, 4).unwrap();
+        let out = run_recipe(&r, &mut mesh, &InputLimits::default(), &NoProgress, 1, 4).unwrap();
         assert_eq!(out.metrics["reference"], "input-after-crop");
         // Normals move nothing: the result is the cropped input.
         assert!(out.metrics["distance"]["max"].as_f64().unwrap() < 1e-12);
@@ -383,7 +385,7 @@ mod tests {
             p.y += 0.2 * (i as f64 * 2.3).cos();
         }
         let mut mesh = input.clone();
-        let out = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
+        let out = run_recipe(&r, &mut mesh, &InputLimits::default(), &NoProgress, 0, 1).unwrap();
         assert!(mesh.positions != input.positions);
         let fresh = metrics_value(&mesh, &input, &r.metrics.options());
         assert_eq!(out.metrics["topology"], fresh["topology"]);
@@ -394,19 +396,19 @@ mod tests {
     fn metrics_off_and_crop_errors() {
         let r = recipe("[metrics]\nenabled = false\n[[step]]\nkind = \"normals\"\n");
         let mut mesh = uv_sphere(1.0, 6, 8);
-        let out = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
+        let out = run_recipe(&r, &mut mesh, &InputLimits::default(), &NoProgress, 0, 1).unwrap();
         assert!(out.metrics.is_null());
         // Drawn though the metrics are off.
         assert!(out.preview.is_some());
         let r = recipe("[metrics]\nenabled = false\n[preview]\nenabled = false\n");
         assert!(
-            run_recipe(&r, &mut mesh, &NoProgress, 0, 1)
+            run_recipe(&r, &mut mesh, &InputLimits::default(), &NoProgress, 0, 1)
                 .unwrap()
                 .preview
                 .is_none()
         );
         let r = recipe("[[step]]\nkind = \"crop\"\nmin = [5, 5, 5]\nmax = [6, 6, 6]\n");
-        let e = run_recipe(&r, &mut mesh, &NoProgress, 0, 1).unwrap_err();
+        let e = run_recipe(&r, &mut mesh, &InputLimits::default(), &NoProgress, 0, 1).unwrap_err();
         assert_eq!((e.index, e.kind.as_str()), (1, "crop"));
         assert!(e.message.contains("removes every triangle"), "{e}");
     }
