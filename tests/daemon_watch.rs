@@ -222,6 +222,18 @@ fn references_outside_the_root_are_never_members() {
         );
     }
     good_scan_is_processed(&lab, "after_outside");
+    // A lab looking at the jobs, or at what failed, is told of the refused scans.
+    for args in [&["history"][..], &["history", "--status", "failed"]] {
+        let (code, text, _) = lab.cli(args);
+        assert_eq!(code, 0);
+        assert!(
+            text.contains("3 scan(s) found but not jobs")
+                && text.contains("history --status waiting"),
+            "{args:?}: {text}"
+        );
+    }
+    let (_, done, _) = lab.cli(&["history", "--status", "done"]);
+    assert!(!done.contains("not jobs"), "{done}");
     let recorded = recorded_inputs(&lab);
     for outside in [&mtl, &image] {
         let hash = sha256_hex(outside);

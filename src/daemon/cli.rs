@@ -443,12 +443,13 @@ pub fn history(at: &StoreAt<'_>, args: &HistoryArgs, out: &mut dyn Write) -> Res
         })?),
         None => None,
     };
-    let rows = store.history(&HistoryFilter {
+    let filter = HistoryFilter {
         since_ms,
         status: args.status.clone(),
         input_glob: args.input.clone(),
         limit: args.limit,
-    })?;
+    };
+    let rows = store.history(&filter)?;
     match args.format {
         Format::Json => {
             serde_json::to_writer_pretty(&mut *out, &rows).map_err(std::io::Error::other)?;
@@ -480,9 +481,36 @@ pub fn history(at: &StoreAt<'_>, args: &HistoryArgs, out: &mut dyn Write) -> Res
                 writeln!(out, "{}", line.join(","))?;
             }
         }
-        Format::Text => write_history_text(&rows, out)?,
+        Format::Text => {
+            write_history_text(&rows, out)?;
+            let not_jobs = scans_not_jobs(&mut store, &filter)?;
+            if not_jobs > 0 {
+                writeln!(
+                    out,
+                    "{not_jobs} scan(s) found but not jobs: a file missing, or refused \
+                     (a link, a file outside the folder, too large); see \
+                     `scanmill history --status waiting`"
+                )?;
+            }
+        }
     }
     Ok(())
+}
+
+/// How many scans the filter's job rows leave out because they never became jobs (waiting
+/// for a member, or refused before they were queued): a lab looking for what failed would
+/// otherwise not see them. None when the filter asks for those scans, or for a job state
+/// other than `failed`.
+fn scans_not_jobs(store: &mut Queue, filter: &HistoryFilter) -> Result<usize, CliError> {
+    if !matches!(filter.status.as_deref(), None | Some("failed")) {
+        return Ok(0);
+    }
+    let waiting = HistoryFilter {
+        status: Some("waiting".into()),
+        limit: None,
+        ..filter.clone()
+    };
+    Ok(store.history(&waiting)?.len())
 }
 
 /// `scanmill db migrate --to URL`: copies this host's SQLite history into PostgreSQL.
