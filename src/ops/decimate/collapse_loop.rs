@@ -295,6 +295,10 @@ pub fn run<const M: usize, O: CollapseOperator>(
         };
         pops += 1;
         let t = t as usize;
+        // The next candidate's records are fetched while this one collapses.
+        if let Some(next) = heap.peek() {
+            work.prefetch_triangle(next as usize);
+        }
         // The candidate's side and its cost, as keyed, when the operator chose one.
         let best = (aux[t] & !FROZEN < 3).then(|| ((aux[t] & !FROZEN) as usize, f64::from_bits(k)));
         match op.attempt(work, t, best, max_error, &mut sc, &mut stats) {

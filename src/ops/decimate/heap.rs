@@ -103,6 +103,12 @@ impl IndexedHeap {
         (i != ABSENT).then(|| self.at(i as usize).0)
     }
 
+    /// The smallest entry's item, left in place.
+    #[inline]
+    pub fn peek(&self) -> Option<u32> {
+        (self.len > 0).then(|| self.at(0).1)
+    }
+
     /// Removes and returns the smallest entry as `(key, item)`.
     pub fn pop(&mut self) -> Option<(u64, u32)> {
         if self.len == 0 {
