@@ -309,7 +309,10 @@ pub fn health_page(live: &LiveStatus, roots: &[(String, String, String)], f: &Fi
             "workers busy".into(),
             format!("{} of {}", live.running, live.workers),
         ),
-        ("scans waiting for a member".into(), count(Some(f.waiting))),
+        (
+            "scans not jobs: a member missing, or refused".into(),
+            count(Some(f.waiting)),
+        ),
         (
             "last successful job (UTC)".into(),
             f.last_success_ms

@@ -64,7 +64,7 @@ pub fn render(f: &Figures, live: &LiveStatus) -> String {
     gauge(
         &mut s,
         "scanmill_waiting_scans",
-        "Scans waiting for a missing or unreadable member.",
+        "Scans that are not jobs: waiting for a missing member, or refused (a link, a file outside the folder, too large).",
         f.waiting,
     );
     let paused = matches!(live.state, super::DaemonState::Paused(_));
