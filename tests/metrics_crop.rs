@@ -9,7 +9,7 @@ use scanmill::mesh::{InputLimits, Mesh, Topology};
 use scanmill::metrics::{self, MetricsOptions, TextureDeviation};
 use scanmill::ops::crop::{CropMode, CropParams, crop};
 use scanmill::recipe::Recipe;
-use scanmill::recipe::runner::{NoProgress, run_recipe};
+use scanmill::recipe::runner::NoProgress;
 use std::collections::HashSet;
 use std::path::Path;
 
@@ -165,17 +165,8 @@ fn report_carries_topology_before_and_after_and_texture_is_unchanged_by_crop() {
         lo.to_array(),
         hi.to_array()
     );
-    let recipe = Recipe::from_toml(&text, Path::new("crop.toml")).unwrap();
     let mut mesh = input.clone();
-    let out = run_recipe(
-        &recipe,
-        &mut mesh,
-        &InputLimits::default(),
-        &NoProgress,
-        0,
-        1,
-    )
-    .unwrap();
+    let out = common::run_recipe_text(&text, &mut mesh, &InputLimits::default());
     let step = out.steps[0].metrics.as_ref().unwrap();
     let topo = &step["topology"];
     assert_eq!(topo["before"]["boundary_edges"], 552);

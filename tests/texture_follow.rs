@@ -5,25 +5,13 @@
 mod common;
 
 use scanmill::mesh::{InputLimits, LoadOptions};
-use scanmill::recipe::Recipe;
-use scanmill::recipe::runner::{NoProgress, run_recipe};
-use std::path::Path;
 
 const JAMES: &str = "textured/james_face_stereo_capture/james.obj";
 
 fn texture_deviation_after(step: &str) -> (f64, serde_json::Value) {
     let mut mesh = common::scan(JAMES);
     let text = format!("[metrics]\nsamples = 20000\n[[step]]\nkind = \"{step}\"\n");
-    let recipe = Recipe::from_toml(&text, Path::new("r.toml")).unwrap();
-    let out = run_recipe(
-        &recipe,
-        &mut mesh,
-        &InputLimits::default(),
-        &NoProgress,
-        0,
-        1,
-    )
-    .unwrap();
+    let out = common::run_recipe_text(&text, &mut mesh, &InputLimits::default());
     let topology = &out.metrics["topology"];
     // Seams and wedges are untouched: only texture coordinate values change.
     assert_eq!(
@@ -52,16 +40,7 @@ fn relax_and_fair_keep_the_photo_on_the_face() {
 fn relax_then_fair_carry_the_texture_once_from_the_scanned_surface() {
     let mut mesh = common::scan(JAMES);
     let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"relax\"\n[[step]]\nkind = \"fair\"\n[[step]]\nkind = \"normals\"\n";
-    let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
-    let out = run_recipe(
-        &recipe,
-        &mut mesh,
-        &InputLimits::default(),
-        &NoProgress,
-        0,
-        1,
-    )
-    .unwrap();
+    let out = common::run_recipe_text(text, &mut mesh, &InputLimits::default());
     // One read-back, after the last vertex-moving step of the run.
     assert!(out.steps[0].figures.get("texture_follow").is_none());
     let follow = &out.steps[1].figures["texture_follow"];
@@ -84,16 +63,7 @@ fn seam_fix_cuts_no_seams_into_a_seamless_face() {
     };
     let mut mesh = common::scan_with("textured/facefuns_di3d_face/example.obj", &options);
     let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"decimate\"\ntarget_faces = 26000\n[[step]]\nkind = \"seam_fix\"\n";
-    let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
-    let out = run_recipe(
-        &recipe,
-        &mut mesh,
-        &InputLimits::default(),
-        &NoProgress,
-        0,
-        1,
-    )
-    .unwrap();
+    let out = common::run_recipe_text(text, &mut mesh, &InputLimits::default());
     let fix = &out.steps[1].figures;
     assert!(fix["repaired"].as_u64().unwrap() > 0, "{fix}");
     assert_eq!(fix["corners_split"], 0, "{fix}");
@@ -106,14 +76,13 @@ fn the_run_decodes_textures_within_the_limits_it_is_given() {
     // The metrics and the preview decode the photo again after the load; they must hold
     // the job's limits, not the defaults. James's photo has more pixels than this allowance.
     let text = "[metrics]\nsamples = 20000\n[[step]]\nkind = \"normals\"\n";
-    let recipe = Recipe::from_toml(text, Path::new("r.toml")).unwrap();
     let tight = InputLimits {
         max_texture_pixels: 1000,
         ..InputLimits::default()
     };
     let measured = |limits: &InputLimits| {
         let mut mesh = common::scan(JAMES);
-        let out = run_recipe(&recipe, &mut mesh, limits, &NoProgress, 0, 1).unwrap();
+        let out = common::run_recipe_text(text, &mut mesh, limits);
         out.metrics["texture"].clone()
     };
     let within_defaults = measured(&InputLimits::default());

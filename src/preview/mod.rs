@@ -171,53 +171,20 @@ pub fn render(
     result: &Mesh,
     options: &PreviewOptions,
 ) -> Result<Preview, PreviewError> {
-    render_with_cache(input, result, options, &mut TextureCache::new())
+    render_with_textures(input, None, result, options, &mut TextureCache::new())
 }
 
-/// [`render`] reading the textures through `textures` (the run's, within the job's limits).
-pub fn render_with_cache(
-    input: &Mesh,
-    result: &Mesh,
-    options: &PreviewOptions,
-    textures: &mut TextureCache,
-) -> Result<Preview, PreviewError> {
-    render_with(input, None, result, options, textures)
-}
-
-/// [`render`] with a closest-point index over `input` already built (the metrics' one):
-/// the distance panel then needs no index of its own.
-pub fn render_with_index(
-    input_index: &SurfaceIndex<'_>,
-    result: &Mesh,
-    options: &PreviewOptions,
-) -> Result<Preview, PreviewError> {
-    render_with_textures(input_index, result, options, &mut TextureCache::new())
-}
-
-/// [`render_with_index`] reading the textures through `textures` (the metrics', which then
-/// need not decode them again).
+/// [`render`] reading the textures through `textures` (the run's, within the job's limits,
+/// shared with the metrics), with `input_index`, when given, the metrics' closest-point index
+/// over `input`: the distance panel then needs no index of its own.
 pub fn render_with_textures(
-    input_index: &SurfaceIndex<'_>,
-    result: &Mesh,
-    options: &PreviewOptions,
-    textures: &mut TextureCache,
-) -> Result<Preview, PreviewError> {
-    render_with(
-        input_index.mesh(),
-        Some(input_index),
-        result,
-        options,
-        textures,
-    )
-}
-
-fn render_with(
     input: &Mesh,
     input_index: Option<&SurfaceIndex<'_>>,
     result: &Mesh,
     options: &PreviewOptions,
     cache: &mut TextureCache,
 ) -> Result<Preview, PreviewError> {
+    debug_assert!(input_index.is_none_or(|i| std::ptr::eq(i.mesh(), input)));
     let start = Instant::now();
     options.validate().map_err(PreviewError::Options)?;
     if input.triangles.is_empty() {

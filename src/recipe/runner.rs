@@ -155,14 +155,13 @@ fn draw_preview(
     if !recipe.preview.enabled {
         return None;
     }
-    let index = stages.first + recipe.steps.len();
-    stages.progress.stage(index, stages.total, "preview");
-    let drawn = match &reference.prepared {
-        Some(Ok(prepared)) => {
-            preview::render_with_textures(prepared.index(), mesh, &recipe.preview, textures)
-        }
-        _ => preview::render_with_cache(reference.reference, mesh, &recipe.preview, textures),
+    let stage = stages.first + recipe.steps.len();
+    stages.progress.stage(stage, stages.total, "preview");
+    let (input, index) = match &reference.prepared {
+        Some(Ok(prepared)) => (prepared.mesh(), Some(prepared.index())),
+        _ => (reference.reference, None),
     };
+    let drawn = preview::render_with_textures(input, index, mesh, &recipe.preview, textures);
     drawn
         .inspect(|p| tracing::info!(ms = p.figures.render_ms, "preview drawn"))
         .inspect_err(|e| tracing::warn!(error = %e, "no preview"))

@@ -40,6 +40,20 @@ pub fn scan_with(rel: &str, options: &LoadOptions) -> Mesh {
         .0
 }
 
+/// Runs the recipe `text` (TOML) on `mesh` under `limits`, as `scanmill process` runs it
+/// after the load; a recipe that does not parse or run fails the test.
+pub fn run_recipe_text(
+    text: &str,
+    mesh: &mut Mesh,
+    limits: &scanmill::mesh::InputLimits,
+) -> scanmill::recipe::runner::RunOutcome {
+    let recipe = scanmill::recipe::Recipe::from_toml(text, std::path::Path::new("r.toml"))
+        .unwrap_or_else(|e| panic!("{text}: {e}"));
+    let progress = scanmill::recipe::runner::NoProgress;
+    scanmill::recipe::runner::run_recipe(&recipe, mesh, limits, &progress, 0, 1)
+        .unwrap_or_else(|e| panic!("{text}: {e}"))
+}
+
 /// The bytes of the file at `path`, decompressed when its name ends in `.gz`.
 pub fn read_bytes(path: &std::path::Path) -> Vec<u8> {
     use std::io::Read;
