@@ -499,7 +499,7 @@ pub fn history(at: &StoreAt<'_>, args: &HistoryArgs, out: &mut dyn Write) -> Res
 
 /// How many scans the filter's job rows leave out because they never became jobs (waiting
 /// for a member, or refused before they were queued): a lab looking for what failed would
-/// otherwise not see them. None when the filter asks for those scans, or for a job state
+/// otherwise not see them. Zero when the filter asks for those scans, or for a job state
 /// other than `failed`.
 fn scans_not_jobs(store: &mut Queue, filter: &HistoryFilter) -> Result<usize, CliError> {
     if !matches!(filter.status.as_deref(), None | Some("failed")) {
