@@ -8,8 +8,7 @@
 //! are translation invariant and this keeps them accurate far from the origin.
 
 use super::guards::{
-    Fan, GuardCounts, Guarded, MoveCheck, Reference, check_crosses, check_triangle, cross_of,
-    guarded_move,
+    Fan, GuardCounts, Guarded, MoveCheck, Reference, check_crosses, cross_of, guarded_move,
 };
 use super::neighbourhood::Neighbourhood;
 use super::positive;
@@ -269,7 +268,8 @@ pub struct Interior<'a> {
     pub movable_count: usize,
     /// Every triangle's vertices, for the fast sweep's global flip check.
     pub triangles: &'a [[u32; 3]],
-    /// Every triangle's reference at the start of the step (see [`check_triangle`]).
+    /// Every triangle's reference at the start of the step (see
+    /// [`check_triangle`](super::guards::check_triangle)).
     pub references: &'a [Reference],
     /// Zero tolerance on `H`, absolute (the thesis' `epsilon` divided by the mean edge
     /// length: docs/fairing.md reading F6; an absolute 1e-4 in 1/length would depend on units).
@@ -650,12 +650,15 @@ fn bad_triangles_again(
         .map(|t| {
             let [a, b, c] = it.triangles[t as usize].map(|v| v as usize);
             let at_new = [new[a], new[b], new[c]];
+            let n_new = cross_of(at_new);
             let check = if new[a] == old[a] && new[b] == old[b] && new[c] == old[c] {
                 MoveCheck::Ok
             } else {
-                check_triangle([old[a], old[b], old[c]], at_new, it.references[t as usize])
+                let at_old = [old[a], old[b], old[c]];
+                let reference = it.references[t as usize];
+                check_crosses(cross_of(at_old), || at_old, n_new, at_new, reference)
             };
-            (t, cross_of(at_new), check)
+            (t, n_new, check)
         })
         .collect()
 }
