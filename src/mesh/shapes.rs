@@ -6,7 +6,7 @@ use super::model::{Index, Mesh, Wedge};
 use glam::{DVec2, DVec3};
 
 /// A flat `nx` × `ny` grid of unit squares in the z = 0 plane, two triangles per square,
-/// counter-clockwise seen from +Z, one wedge per vertex with texture coordinates in [0,1]².
+/// counter-clockwise seen from +Z, one wedge per vertex with texture coordinates in \[0,1\]².
 pub fn grid(nx: usize, ny: usize) -> Mesh {
     let mut m = Mesh::default();
     for j in 0..=ny {

@@ -4,7 +4,7 @@
 //! the reference (barycentric texture coordinates, bilinear lookup).
 //!
 //! Conventions: OBJ `vt` has its origin at the bottom left (data/SOURCES.md), so image row
-//! = (1 − v) · height. Coordinates outside [0,1] wrap (the OBJ/MTL default of repeating
+//! = (1 − v) · height. Coordinates outside \[0,1\] wrap (the OBJ/MTL default of repeating
 //! textures). The difference of two colours is the RMS over the R, G, B channels, in 0..255
 //! units, so a uniform shift of k levels in every channel reads k.
 

@@ -1,7 +1,7 @@
 //! Runs a recipe's steps in order on a mesh, timing each and collecting its figures, then
 //! measures the result and draws the preview. The steps themselves are
-//! [`RecipeStep`](super::step::RecipeStep)s; what they hand each other is the
-//! [`StepContext`](super::step::StepContext).
+//! [`RecipeStep`]s; what they hand each other is the
+//! [`StepContext`].
 
 use super::step::{self, RecipeStep, StepContext};
 use super::{Recipe, Step};

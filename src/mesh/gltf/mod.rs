@@ -1,4 +1,4 @@
-//! glTF 2.0: reading `.gltf`/`.glb` ([`read`]) and writing `.glb` ([`write`]).
+//! glTF 2.0: reading `.gltf`/`.glb` ([`read()`]) and writing `.glb` ([`write()`]).
 //!
 //! Crate choice: the `gltf` crate (without its importer) parses and validates the JSON
 //! document, a schema of some thirty object kinds with cross-references that would be a

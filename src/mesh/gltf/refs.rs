@@ -1,6 +1,6 @@
 //! The files a `.gltf` names beside itself: its external buffers and images. The watcher
 //! needs them to know when a glTF scan set is complete (the loader reads them itself, in
-//! [`super::read`]); nothing else of the document is looked at here.
+//! [`super::read()`]); nothing else of the document is looked at here.
 //!
 //! The document is streamed: every value but `buffers[].uri` and `images[].uri` is skipped
 //! unread, and a `data:` URI is recognised and dropped without being kept, so memory stays

@@ -561,7 +561,7 @@ fn finite_uv(u: f64, v: f64) -> std::result::Result<DVec2, Fault> {
     Ok(uv)
 }
 
-/// Unrolls triangle strips: triangle j of a strip is (v[j], v[j+1], v[j+2]), with the first
+/// Unrolls triangle strips: triangle j of a strip is (`v[j]`, `v[j+1]`, `v[j+2]`), with the first
 /// two swapped for odd j so that all keep the strip's orientation; -1 restarts a strip.
 /// Triangles that repeat an index are the zero-area joins strippers insert; they are dropped.
 ///

@@ -20,11 +20,11 @@
 //! leaves survives, with its corners re-mapped, in input order; of triangles that map to the
 //! same three cells only the first is kept. Never-collapsed leaves keep their vertex and its
 //! wedges; a collapsed cell of `cluster` gets one new vertex with one wedge (its attributes
-//! from the quadric; §3.1.2 [I]: one attribute set per output vertex, so seams inside a cell
+//! from the quadric; §3.1.2 as we read it: one attribute set per output vertex, so seams inside a cell
 //! close, which the `seam_fix` step then repairs); a collapsed cell of `cluster-keep` is
 //! represented by its chosen original vertex, each corner taking that vertex's wedge whose
 //! texture coordinate is nearest to the corner's own. Clustering does not preserve
-//! manifoldness (§3.1 [D]); the guards of the collapse methods do not apply here.
+//! manifoldness (our note on §3.1); the guards of the collapse methods do not apply here.
 
 use super::quadric::{Quadric, Reduced, Weights, dot, sym_mul};
 use super::{DecimateParams, DecimateReport, Fallback, Method};
@@ -62,7 +62,7 @@ struct Node {
     leaf: bool,
 }
 
-/// Per-vertex data of the vo metric (§3.1.1, eqs. 3.1–3.3 in O(1) form, §3.1.1 [D]).
+/// Per-vertex data of the vo metric (§3.1.1, eqs. 3.1–3.3 rearranged by us into O(1) form).
 #[derive(Clone, Copy, Default)]
 struct VoSums {
     geo: Reduced,

@@ -1,4 +1,4 @@
-//! What the thesis leaves out and a lab needs (thesis §3.2 [D], reading R12 in
+//! What the thesis leaves out and a lab needs (thesis §3.2, reading R12 in
 //! docs/decimation.md; as meshoptimizer and pmp-library do): vertex classes for seams and borders, the link condition, and the
 //! triangle checks (normal flip, texture flip, degeneracy).
 

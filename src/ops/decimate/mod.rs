@@ -4,8 +4,8 @@
 //! vo, §3.1.1–3.1.2). Every method records in `triangle_origins` the input triangle each
 //! output triangle descends from, so that `seam_fix` (§3.3) can run after any of them.
 //!
-//! Positions are normalised into a unit box (largest side 1) for the whole run (reading R16
-//! [D]); errors are reported relative to the bounding-box diagonal.
+//! Positions are normalised into a unit box (largest side 1) for the whole run (reading
+//! R16); errors are reported relative to the bounding-box diagonal.
 
 // Small fixed-size linear algebra reads best with index loops, and `!(x > 0.0)` is the
 // intended NaN-rejecting test throughout.
@@ -129,7 +129,7 @@ pub struct DecimateParams {
     /// merges three vertices at once, stop short of the target on pizza).
     pub seam_weight: Option<f64>,
     /// λ_geom, λ_tex, λ_normal of §2.3.2. Table 5.1 recommends 1, 1e-17, 1e-17; our default
-    /// λ_tex is 0.05 (w = 0.0025 on texture coordinates in [0,1] against a unit-box
+    /// λ_tex is 0.05 (w = 0.0025 on texture coordinates in \[0,1\] against a unit-box
     /// geometry): it lowers the colour deviation on a textured face for a distance still
     /// below MeshLab's (figures in docs/decimation.md, "Measurements behind rules in the
     /// code"). Set 1e-17 for the thesis' values.
@@ -149,7 +149,7 @@ pub struct DecimateParams {
     pub fallback: Fallback,
     /// Largest change (degrees) of a surviving triangle's normal in one collapse.
     pub max_normal_change: f64,
-    /// Link condition, flip, texture-flip and degeneracy guards (§3.2 [D]); off is the
+    /// Link condition, flip, texture-flip and degeneracy guards (not in the thesis, §3.2); off is the
     /// thesis-literal behaviour and loses the guarantees. Research only, as `conditioning`.
     #[serde(skip_deserializing)]
     pub guards: bool,

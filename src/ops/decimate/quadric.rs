@@ -8,7 +8,7 @@
 //! and `alpha = Σ a`. The attribute block of the full matrix is then `−w_j·g_j` (coupling),
 //! `w_j·alpha` (diagonal) and `−w_j·delta_j` (linear term), so nothing is lost by keeping
 //! those parts unweighted, and the optimal attributes `s_j = (g_j·p + delta_j)/alpha` do not
-//! depend on the weights at all (§2.3.3 [D]).
+//! depend on the weights at all (our derivation from §2.3.3).
 //!
 //! Readings applied (docs/decimation.md): the plane offset is `d = −n·p1` (reading R1, the thesis prints
 //! `d = n·p1`); the attribute block of (2.11) is `g gᵀ`, not `n nᵀ` (reading R2); the attribute
@@ -83,7 +83,7 @@ pub(crate) fn sym_mul(m: &[f64; 6], v: [f64; 3]) -> [f64; 3] {
 /// The linear attribute field of one triangle (eq. 2.10): `s_j(p) = g_j·p + d_j` with
 /// `g_j` in the triangle's plane. Solved in closed form with the dual basis of the edge
 /// vectors instead of the 4×4 system (same solution: the last row of (2.10) only says
-/// `g_j ⊥ n`). `None` for a degenerate triangle (the system is singular, §2.3.2 [D]).
+/// `g_j ⊥ n`). `None` for a degenerate triangle (the system is singular; our note on §2.3.2).
 pub fn attribute_gradients<const M: usize>(
     p: [[f64; 3]; 3],
     s: [[f64; M]; 3],
@@ -113,7 +113,7 @@ pub fn attribute_gradients<const M: usize>(
 
 impl<const M: usize> Quadric<M> {
     /// The area-weighted quadric of one triangle (eqs. 2.9–2.12 with the weights of §2.3.2
-    /// [D] and the errata in the module comment). `None` for a zero-area triangle.
+    /// and the errata in the module comment). `None` for a zero-area triangle.
     pub fn from_triangle(p: [[f64; 3]; 3], s: [[f64; M]; 3], w: &Weights<M>) -> Option<Self> {
         let nvec = cross(sub(p[1], p[0]), sub(p[2], p[0]));
         let len = dot(nvec, nvec).sqrt();
@@ -212,7 +212,7 @@ impl<const M: usize> AttrPart<M> {
         self.alpha += o.alpha;
     }
 
-    /// The optimal attributes at position `p` (§2.3.3 [D]): the area-weighted mean of the
+    /// The optimal attributes at position `p` (our derivation from §2.3.3): the area-weighted mean of the
     /// summed faces' linear predictions, independent of the weights. `None` without area.
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {

@@ -191,7 +191,7 @@ pub struct Config {
 pub enum Placement {
     /// Minimiser of the wedge-aware quadric (§3.2).
     Free,
-    /// At the position of S[i], which keeps its place and its wedges' attributes (a
+    /// At the position of `S[i]`, which keeps its place and its wedges' attributes (a
     /// fixed, seam or border vertex absorbing neighbours: a half-edge collapse onto it).
     Anchor(usize),
 }
@@ -216,7 +216,7 @@ pub struct Group<const M: usize> {
     /// Number of wedges merged into this group.
     pub size: u32,
     pub q: AttrPart<M>,
-    /// The wedge of S[i] in this group, or NIL.
+    /// The wedge of `S[i]` in this group, or NIL.
     pub at: [u32; 3],
     pub attr: [f64; M],
 }
@@ -743,7 +743,7 @@ impl<const M: usize> Work<M> {
     /// meshoptimizer's seam collapses); a fixed vertex may absorb such a
     /// neighbour the same way, and interior vertices merge into whichever of these they
     /// meet. Returns up to two candidate anchors (indices into S; none = free placement).
-    /// `along(i, j)` says whether S[i]–S[j] is a seam (border) edge; `None` skips that
+    /// `along(i, j)` says whether `S[i]`–`S[j]` is a seam (border) edge; `None` skips that
     /// test (the cheap heap key).
     fn rules(
         &self,
@@ -1271,7 +1271,7 @@ impl<const M: usize> Work<M> {
         n
     }
 
-    /// The thesis' cost estimate for a face (§3.2 "Cost estimate", [I] formula): weighted
+    /// The thesis' cost estimate for a face (§3.2 "Cost estimate"; the formula as we read it): weighted
     /// mean squared deviation of the corner values from their mean.
     pub fn estimate(&self, t: usize) -> f64 {
         let tri = self.tris[t];

@@ -56,7 +56,7 @@ pub fn nets(q: &FineQuads) -> Result<Nets, String> {
     })
 }
 
-/// The 3×3 control net b[x][y] of sub-quad `f` with corners c₀ (0,0), c₁ (1,0), c₂ (1,1),
+/// The 3×3 control net `b[x][y]` of sub-quad `f` with corners c₀ (0,0), c₁ (1,0), c₂ (1,1),
 /// c₃ (0,1) (thesis §4.5).
 pub fn control_net(q: &FineQuads, nets: &Nets, f: usize) -> [[DVec3; 3]; 3] {
     let c = q.faces[f];
