@@ -5,6 +5,7 @@
 //! vertex with more than one wedge: every step that moves positions moves the vertex, so
 //! seams stay closed by construction.
 
+use super::wedges::WedgeInterner;
 use glam::{DVec2, DVec3};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -94,6 +95,30 @@ pub struct Mesh {
 }
 
 impl Mesh {
+    /// Forgets the normals: every wedge loses its normal, and wedges that differed only in
+    /// their normal become the first of them. The others keep their order, so a mesh
+    /// whose normals split no wedge keeps its numbering (and whatever depends on it). For
+    /// a recipe that writes fresh normals, whose earlier steps would only carry the scan's
+    /// own along.
+    pub fn drop_normals(&mut self) {
+        if self.normals.is_empty() && self.wedges.iter().all(|w| w.normal.is_none()) {
+            return;
+        }
+        let mut interner = WedgeInterner::new(self.positions.len());
+        let renumbered: Vec<Index> = self
+            .wedges
+            .iter()
+            .map(|&w| interner.intern(Wedge { normal: None, ..w }))
+            .collect();
+        for triangle in &mut self.triangles {
+            for w in triangle.iter_mut() {
+                *w = renumbered[*w as usize];
+            }
+        }
+        self.wedges = interner.into_wedges();
+        self.normals = Vec::new();
+    }
+
     /// The same vertices, wedges and materials, without triangles: the start of a mesh
     /// that re-triangulates this one.
     pub fn without_triangles(&self) -> Mesh {
@@ -261,4 +286,50 @@ pub fn bounding_box_of(points: &[DVec3]) -> Option<(DVec3, DVec3)> {
             .iter()
             .fold((first, first), |(lo, hi), &p| (lo.min(p), hi.max(p))),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::grid;
+
+    #[test]
+    fn dropping_normals_merges_the_wedges_they_split() {
+        let mut m = grid(3, 2);
+        // A normal per triangle: every corner's wedge is its own.
+        let corners: Vec<(usize, usize)> = (0..m.triangles.len())
+            .flat_map(|t| (0..3).map(move |k| (t, k)))
+            .collect();
+        let before: Vec<_> = corners
+            .iter()
+            .map(|&(t, k)| m.wedges[m.triangles[t][k] as usize])
+            .collect();
+        let mut wedges = Vec::new();
+        for (&(t, k), old) in corners.iter().zip(&before) {
+            m.triangles[t][k] = wedges.len() as Index;
+            wedges.push(Wedge {
+                normal: Some(t as Index),
+                ..*old
+            });
+        }
+        m.normals = vec![DVec3::Z; m.triangles.len()];
+        m.wedges = wedges;
+        m.check_invariants().unwrap();
+        assert_eq!(m.wedges.len(), 3 * m.triangles.len());
+
+        m.drop_normals();
+
+        m.check_invariants().unwrap();
+        assert!(m.normals.is_empty());
+        // One wedge per vertex again (the grid has no texture seam), each corner with its
+        // vertex and texture coordinate as before.
+        assert_eq!(m.wedges.len(), m.positions.len());
+        for (&(t, k), old) in corners.iter().zip(&before) {
+            let w = m.wedges[m.triangles[t][k] as usize];
+            assert_eq!(
+                (w.vertex, w.texcoord, w.normal),
+                (old.vertex, old.texcoord, None)
+            );
+        }
+    }
 }

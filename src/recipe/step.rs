@@ -43,6 +43,12 @@ pub trait RecipeStep {
         false
     }
 
+    /// The step writes every wedge's normal afresh (`normals`): what the steps before it
+    /// do with the scan's own normals is lost, so the runner drops those first.
+    fn replaces_normals(&self) -> bool {
+        false
+    }
+
     /// Run on `mesh`, the step keeps only one core busy for most of its time, so work that
     /// does not depend on it (the metrics' reference) can run beside it.
     fn leaves_a_core_idle(&self, _mesh: &Mesh) -> bool {
@@ -118,6 +124,10 @@ impl Step {
 impl RecipeStep for ops::normals::NormalsParams {
     fn run(&self, mesh: &mut Mesh, _: &mut StepContext) -> Result<Value, String> {
         Ok(figures(ops::normals::recompute_normals(mesh, self)))
+    }
+
+    fn replaces_normals(&self) -> bool {
+        true
     }
 }
 
