@@ -10,7 +10,9 @@
 //!   coral subdivided once (one chart per texture island: 41,280 seam edges).
 //!
 //! Every input is renumbered for locality first (`Mesh::reorder_for_locality`), as
-//! `scanmill process` does before a recipe that decimates; both decimators get that mesh.
+//! `scanmill process` does before a recipe that decimates, and loses the scan's own normals,
+//! as the face-scan recipe's runner drops them (its `normals` step replaces them); both
+//! decimators get that mesh, with texture coordinates as the only attributes.
 //! On the coral the other methods (face collapse, the two clusterings) and edge collapse in
 //! one pass run too.
 //!
@@ -84,7 +86,11 @@ fn scan(rel: &str) -> Mesh {
     .0
 }
 
-fn renumbered(mut mesh: Mesh) -> Mesh {
+/// The mesh as `scanmill process` hands it to the face-scan recipe's decimation: without the
+/// scan's own normals (the recipe's `normals` step replaces them, so the runner drops them
+/// first; meshoptimizer below gets no normals either) and numbered for locality.
+fn as_the_recipe_runs(mut mesh: Mesh) -> Mesh {
+    mesh.drop_normals();
     mesh.reorder_for_locality();
     mesh
 }
@@ -135,13 +141,13 @@ fn meshopt_simplify(mesh: &Mesh, target: usize) -> usize {
 fn inputs() -> Vec<(String, Mesh)> {
     let mut inputs = vec![(
         "coral-400k".to_string(),
-        renumbered(scanner_sized(&scan(CORAL), CORAL_400K)),
+        as_the_recipe_runs(scanner_sized(&scan(CORAL), CORAL_400K)),
     )];
     if let Some(face) = common::face400k() {
-        inputs.push(("face400k".to_string(), renumbered(face)));
+        inputs.push(("face400k".to_string(), as_the_recipe_runs(face)));
     }
     for (name, rel) in SCANS {
-        inputs.push((name.to_string(), renumbered(scan(rel))));
+        inputs.push((name.to_string(), as_the_recipe_runs(scan(rel))));
     }
     inputs
 }
