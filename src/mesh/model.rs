@@ -290,30 +290,12 @@ pub fn bounding_box_of(points: &[DVec3]) -> Option<(DVec3, DVec3)> {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-    use crate::mesh::shapes::grid;
+    use crate::mesh::shapes::{grid, with_a_normal_per_triangle};
 
     #[test]
     fn dropping_normals_merges_the_wedges_they_split() {
-        let mut m = grid(3, 2);
-        // A normal per triangle: every corner's wedge is its own.
-        let corners: Vec<(usize, usize)> = (0..m.triangles.len())
-            .flat_map(|t| (0..3).map(move |k| (t, k)))
-            .collect();
-        let before: Vec<_> = corners
-            .iter()
-            .map(|&(t, k)| m.wedges[m.triangles[t][k] as usize])
-            .collect();
-        let mut wedges = Vec::new();
-        for (&(t, k), old) in corners.iter().zip(&before) {
-            m.triangles[t][k] = wedges.len() as Index;
-            wedges.push(Wedge {
-                normal: Some(t as Index),
-                ..*old
-            });
-        }
-        m.normals = vec![DVec3::Z; m.triangles.len()];
-        m.wedges = wedges;
+        let plain = grid(3, 2);
+        let mut m = with_a_normal_per_triangle(plain.clone());
         m.check_invariants().unwrap();
         assert_eq!(m.wedges.len(), 3 * m.triangles.len());
 
@@ -324,12 +306,14 @@ mod tests {
         // One wedge per vertex again (the grid has no texture seam), each corner with its
         // vertex and texture coordinate as before.
         assert_eq!(m.wedges.len(), m.positions.len());
-        for (&(t, k), old) in corners.iter().zip(&before) {
-            let w = m.wedges[m.triangles[t][k] as usize];
-            assert_eq!(
-                (w.vertex, w.texcoord, w.normal),
-                (old.vertex, old.texcoord, None)
-            );
+        for (a, b) in m.triangles.iter().zip(&plain.triangles) {
+            for (&wa, &wb) in a.iter().zip(b) {
+                let (x, y) = (m.wedges[wa as usize], plain.wedges[wb as usize]);
+                assert_eq!(
+                    (x.vertex, x.texcoord, x.normal),
+                    (y.vertex, y.texcoord, None)
+                );
+            }
         }
     }
 }

@@ -273,6 +273,25 @@ pub(crate) fn assert_faces_outward(m: &Mesh) {
     }
 }
 
+/// `m` with a normal of its own on every triangle (+Z), so that each corner has a wedge of
+/// its own: a scan whose normals split every vertex.
+#[cfg(test)]
+pub(crate) fn with_a_normal_per_triangle(mut m: Mesh) -> Mesh {
+    let mut wedges = Vec::with_capacity(3 * m.triangles.len());
+    for (t, triangle) in m.triangles.iter_mut().enumerate() {
+        for w in triangle.iter_mut() {
+            wedges.push(Wedge {
+                normal: Some(t as Index),
+                ..m.wedges[*w as usize]
+            });
+            *w = (wedges.len() - 1) as Index;
+        }
+    }
+    m.wedges = wedges;
+    m.normals = vec![DVec3::Z; m.triangles.len()];
+    m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

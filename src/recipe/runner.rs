@@ -402,6 +402,28 @@ mod tests {
     }
 
     #[test]
+    fn the_scans_normals_are_dropped_only_before_a_step_that_replaces_them() {
+        let scan = crate::mesh::shapes::with_a_normal_per_triangle(crate::mesh::shapes::grid(4, 3));
+        let (vertices, corners) = (scan.positions.len(), 3 * scan.triangles.len());
+        // A normals step: it finds one wedge per vertex, the scan's normals gone before it.
+        let r = recipe(
+            "[[step]]\nkind = \"relax\"\nmax_iterations = 2\n[[step]]\nkind = \"normals\"\n",
+        );
+        let mut mesh = scan.clone();
+        let steps = run_steps(&r, &mut mesh, &NoProgress, 0, 2).unwrap();
+        assert_eq!(steps[1].figures["wedges_before"], vertices);
+        assert_eq!(mesh.normals.len(), vertices);
+        // No normals step: the scan's normals stay, one wedge per corner.
+        let r = recipe("[[step]]\nkind = \"relax\"\nmax_iterations = 2\n");
+        let mut mesh = scan.clone();
+        run_steps(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
+        assert_eq!(
+            (mesh.wedges.len(), mesh.normals.len()),
+            (corners, scan.normals.len())
+        );
+    }
+
+    #[test]
     fn metrics_off_and_crop_errors() {
         let r = recipe("[metrics]\nenabled = false\n[[step]]\nkind = \"normals\"\n");
         let mut mesh = uv_sphere(1.0, 6, 8);
