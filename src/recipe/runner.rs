@@ -283,8 +283,8 @@ fn run_steps_with(
     let mut reports = Vec::with_capacity(recipe.steps.len());
     let mut follow = TextureFollow::default();
     // The steps before one that replaces the normals would only carry the scan's own along
-    // (the decimation as three more attribute channels on every wedge, about a tenth of its
-    // time on the USNM coral); the input the metrics and the preview read keeps them.
+    // (the decimation as three more attribute channels on every wedge; docs/face-scan.md
+    // measures what that cost). The input the metrics and the preview read keeps them.
     if recipe
         .steps
         .iter()
