@@ -101,7 +101,8 @@ impl Mesh {
     /// a recipe that writes fresh normals, whose earlier steps would only carry the scan's
     /// own along.
     pub fn drop_normals(&mut self) {
-        if self.normals.is_empty() && self.wedges.iter().all(|w| w.normal.is_none()) {
+        // A wedge's normal indexes `normals` (`check_invariants`): none to drop.
+        if self.normals.is_empty() {
             return;
         }
         let mut interner = WedgeInterner::new(self.positions.len());

@@ -20,11 +20,12 @@
 //! leaves survives, with its corners re-mapped, in input order; of triangles that map to the
 //! same three cells only the first is kept. Never-collapsed leaves keep their vertex and its
 //! wedges; a collapsed cell of `cluster` gets one new vertex with one wedge (its attributes
-//! from the quadric; §3.1.2 as we read it: one attribute set per output vertex, so seams inside a cell
-//! close, which the `seam_fix` step then repairs); a collapsed cell of `cluster-keep` is
-//! represented by its chosen original vertex, each corner taking that vertex's wedge whose
-//! texture coordinate is nearest to the corner's own. Clustering does not preserve
-//! manifoldness (our note on §3.1); the guards of the collapse methods do not apply here.
+//! from the quadric; §3.1.2 as we read it: one attribute set per output vertex, so seams
+//! inside a cell close, which the `seam_fix` step then repairs); a collapsed cell of
+//! `cluster-keep` is represented by its chosen original vertex, each corner taking that
+//! vertex's wedge whose texture coordinate is nearest to the corner's own. Clustering does
+//! not preserve manifoldness (our note on §3.1); the guards of the collapse methods do not
+//! apply here.
 
 use super::quadric::{Quadric, Reduced, Weights, dot, sym_mul};
 use super::{DecimateParams, DecimateReport, Fallback, Method};

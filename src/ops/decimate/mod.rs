@@ -149,8 +149,9 @@ pub struct DecimateParams {
     pub fallback: Fallback,
     /// Largest change (degrees) of a surviving triangle's normal in one collapse.
     pub max_normal_change: f64,
-    /// Link condition, flip, texture-flip and degeneracy guards (not in the thesis, §3.2); off is the
-    /// thesis-literal behaviour and loses the guarantees. Research only, as `conditioning`.
+    /// Link condition, flip, texture-flip and degeneracy guards (not in the thesis, §3.2);
+    /// off is the thesis-literal behaviour and loses the guarantees. Research only, as
+    /// `conditioning`.
     #[serde(skip_deserializing)]
     pub guards: bool,
     /// Edge collapse of a large scan: the two halves first, each on its own core, then the

@@ -212,8 +212,9 @@ impl<const M: usize> AttrPart<M> {
         self.alpha += o.alpha;
     }
 
-    /// The optimal attributes at position `p` (our derivation from §2.3.3): the area-weighted mean of the
-    /// summed faces' linear predictions, independent of the weights. `None` without area.
+    /// The optimal attributes at position `p` (our derivation from §2.3.3): the
+    /// area-weighted mean of the summed faces' linear predictions, independent of the
+    /// weights. `None` without area.
     #[inline]
     pub fn attributes_at(&self, p: [f64; 3]) -> Option<[f64; M]> {
         if !(self.alpha > 0.0) {

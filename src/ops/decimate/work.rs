@@ -1271,8 +1271,8 @@ impl<const M: usize> Work<M> {
         n
     }
 
-    /// The thesis' cost estimate for a face (§3.2 "Cost estimate"; the formula as we read it): weighted
-    /// mean squared deviation of the corner values from their mean.
+    /// The thesis' cost estimate for a face (§3.2 "Cost estimate"; the formula as we read
+    /// it): weighted mean squared deviation of the corner values from their mean.
     pub fn estimate(&self, t: usize) -> f64 {
         let tri = self.tris[t];
         let p = self.tv[t].map(|v| self.pos[v as usize]);
