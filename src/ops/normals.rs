@@ -201,10 +201,83 @@ pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsRepo
     }
 }
 
+/// What [`refresh_normals`] did.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct NormalsRefresh {
+    /// Normals written: one for each distinct (vertex, normal) pair of the wedges.
+    pub normals: usize,
+    /// Of those, normals left as they were because every triangle around them has zero area.
+    pub kept: usize,
+}
+
+/// Recomputes the normals a mesh already has, after its vertices moved, without changing
+/// how they are shared: the corners of a vertex that shared a normal share the new one, and
+/// corners that had their own (a hard edge, a flat-shaded face) keep their own. Each is the
+/// normalised sum of the area-weighted normals of the triangles whose corners use it, the
+/// `normals` step's default weighting (thesis §6.4). Wedges and their numbering are
+/// unchanged; a wedge without a normal stays without one. The runner calls this after a
+/// run of vertex-moving steps (`relax`, `fair`, `smooth`) that no `normals` step follows, so
+/// that the scan's own normals are not written stale.
+pub fn refresh_normals(mesh: &mut Mesh) -> NormalsRefresh {
+    const NONE: Index = Index::MAX;
+    // A class per distinct (vertex, normal) pair, numbered in wedge order.
+    let mut class_of_pair = std::collections::HashMap::new();
+    let mut old_normal = Vec::new();
+    let wedge_class: Vec<Index> = mesh
+        .wedges
+        .iter()
+        .map(|w| match w.normal {
+            None => NONE,
+            Some(n) => *class_of_pair.entry((w.vertex, n)).or_insert_with(|| {
+                old_normal.push(mesh.normals[n as usize]);
+                (old_normal.len() - 1) as Index
+            }),
+        })
+        .collect();
+    drop(class_of_pair);
+    // Area-weighted face normals summed per class (sequential: a scatter).
+    let mut sums = vec![DVec3::ZERO; old_normal.len()];
+    for t in 0..mesh.triangles.len() {
+        let cross = mesh.triangle_cross(t);
+        if !cross.is_finite() {
+            continue;
+        }
+        for &w in &mesh.triangles[t] {
+            let class = wedge_class[w as usize];
+            if class != NONE {
+                sums[class as usize] += cross;
+            }
+        }
+    }
+    let mut kept = 0;
+    mesh.normals = sums
+        .iter()
+        .zip(&old_normal)
+        .map(|(s, &old)| {
+            let n = s.normalize_or_zero();
+            if n == DVec3::ZERO {
+                kept += 1;
+                old
+            } else {
+                n
+            }
+        })
+        .collect();
+    for (w, &class) in mesh.wedges.iter_mut().zip(&wedge_class) {
+        if class != NONE {
+            w.normal = Some(class);
+        }
+    }
+    NormalsRefresh {
+        normals: mesh.normals.len(),
+        kept,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::shapes::{cube, grid};
+    use crate::mesh::shapes::{cube, grid, uv_sphere, with_a_normal_per_triangle};
 
     #[test]
     fn flat_grid_normals_point_up() {
@@ -267,6 +340,87 @@ mod tests {
             );
             assert!((n - p.normalize()).length() < 1e-12, "{n} at {p}");
         }
+    }
+
+    /// A sphere whose normals are stale: every one points along +Z, as if its vertices had
+    /// moved after the scanner wrote them.
+    fn sphere_with_stale_normals(shared: bool) -> Mesh {
+        let mut m = uv_sphere(1.0, 8, 12);
+        if shared {
+            for w in &mut m.wedges {
+                w.normal = Some(0);
+            }
+            m.normals = vec![DVec3::Z];
+            m
+        } else {
+            with_a_normal_per_triangle(m)
+        }
+    }
+
+    #[test]
+    fn refreshed_normals_follow_the_surface_and_keep_their_sharing() {
+        // One normal per vertex: each becomes the vertex's smooth normal (outward on a
+        // sphere), the wedges untouched.
+        let mut smooth = sphere_with_stale_normals(true);
+        let wedges = smooth.wedges.clone();
+        let r = refresh_normals(&mut smooth);
+        assert_eq!((r.normals, r.kept), (smooth.positions.len(), 0));
+        assert_eq!(smooth.wedges.len(), wedges.len());
+        for (w, old) in smooth.wedges.iter().zip(&wedges) {
+            assert_eq!((w.vertex, w.texcoord), (old.vertex, old.texcoord));
+            let (n, p) = (
+                smooth.normals[w.normal.unwrap() as usize],
+                smooth.positions[w.vertex as usize],
+            );
+            assert!(n.dot(p.normalize()) > 0.95, "{n} at {p}");
+        }
+        // A normal per triangle (flat shading): each corner's normal becomes its own
+        // triangle's, so the faces stay flat.
+        let mut flat = sphere_with_stale_normals(false);
+        let r = refresh_normals(&mut flat);
+        assert_eq!(r.normals, 3 * flat.triangles.len());
+        for t in 0..flat.triangles.len() {
+            let face = flat.triangle_cross(t).normalize();
+            for &w in &flat.triangles[t] {
+                let n = flat.normals[flat.wedges[w as usize].normal.unwrap() as usize];
+                assert!((n - face).length() < 1e-12, "{n} against {face}");
+            }
+        }
+        flat.check_invariants().unwrap();
+        smooth.check_invariants().unwrap();
+    }
+
+    #[test]
+    fn refresh_keeps_what_it_cannot_recompute() {
+        let mut m = sphere_with_stale_normals(true);
+        // A wedge without a normal stays without one.
+        let bare = m.wedges.len();
+        let first = m.triangles[0][0];
+        m.wedges.push(Wedge {
+            normal: None,
+            ..m.wedges[first as usize]
+        });
+        m.triangles[0][0] = bare as Index;
+        // A vertex whose triangles all have zero area keeps its normal.
+        let pole = m.wedges[m.triangles[5][1] as usize].vertex;
+        let stuck: Vec<usize> = (0..m.triangles.len())
+            .filter(|&t| m.triangle_vertices(t).contains(&pole))
+            .collect();
+        for &t in &stuck {
+            for v in m.triangle_vertices(t) {
+                m.positions[v as usize] = m.positions[pole as usize];
+            }
+        }
+        let r = refresh_normals(&mut m);
+        assert!(r.kept >= 1);
+        assert_eq!(m.wedges[bare].normal, None);
+        let at_pole = m
+            .wedges
+            .iter()
+            .find(|w| w.vertex == pole && w.normal.is_some())
+            .unwrap();
+        assert_eq!(m.normals[at_pole.normal.unwrap() as usize], DVec3::Z);
+        m.check_invariants().unwrap();
     }
 
     #[test]

@@ -272,6 +272,21 @@ impl TextureFollow {
     }
 }
 
+/// The scan's own normals after a run of vertex-moving steps: recomputed from the moved
+/// surface, shared as the scan shared them, adding `normals_refresh` to the step's figures.
+/// Without this they would be written as the scanner computed them, for a surface the
+/// steps have since smoothed. A mesh without normals, or one whose recipe has a `normals`
+/// step (the runner dropped them before the steps), has none to refresh.
+fn refresh_scan_normals(mesh: &mut Mesh, figures: &mut Value) {
+    if mesh.normals.is_empty() {
+        return;
+    }
+    let report = ops::normals::refresh_normals(mesh);
+    if let Value::Object(map) = figures {
+        map.insert("normals_refresh".into(), step::figures(report));
+    }
+}
+
 /// Runs the steps in order, each between `hooks.before` and `hooks.after`.
 fn run_steps_with(
     recipe: &Recipe,
@@ -337,6 +352,9 @@ fn run_one(
     }
     let run_goes_on = next.is_some_and(|s| s.moves_vertices());
     follow.end(mesh, run_goes_on && before.is_none(), &mut figures);
+    if step.as_recipe_step().moves_vertices() && !(run_goes_on && before.is_none()) {
+        refresh_scan_normals(mesh, &mut figures);
+    }
     debug_assert!(mesh.check_invariants().is_ok(), "{kind}");
     cx.changed = true;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -413,14 +431,49 @@ mod tests {
         let steps = run_steps(&r, &mut mesh, &NoProgress, 0, 2).unwrap();
         assert_eq!(steps[1].figures["wedges_before"], vertices);
         assert_eq!(mesh.normals.len(), vertices);
-        // No normals step: the scan's normals stay, one wedge per corner.
+        // No normals step: the scan's normals stay shared as they were (a normal per
+        // triangle, one wedge per corner), refreshed after relax (one per corner now).
         let r = recipe("[[step]]\nkind = \"relax\"\nmax_iterations = 2\n");
         let mut mesh = scan.clone();
         run_steps(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
-        assert_eq!(
-            (mesh.wedges.len(), mesh.normals.len()),
-            (corners, scan.normals.len())
+        assert_eq!((mesh.wedges.len(), mesh.normals.len()), (corners, corners));
+    }
+
+    #[test]
+    fn a_scans_normals_follow_the_steps_that_move_its_vertices() {
+        // A sphere whose normals all point along +Z, shared by each vertex's wedges.
+        let mut scan = uv_sphere(1.0, 10, 16);
+        for w in &mut scan.wedges {
+            w.normal = Some(0);
+        }
+        scan.normals = vec![glam::DVec3::Z];
+        let outward = |mesh: &Mesh| {
+            mesh.wedges.iter().all(|w| {
+                let n = mesh.normals[w.normal.unwrap() as usize];
+                n.dot(mesh.positions[w.vertex as usize].normalize()) > 0.95
+            })
+        };
+        assert!(!outward(&scan));
+        // Two smoothing steps: refreshed once, after the second, and reported there.
+        let r = recipe(
+            "[[step]]\nkind = \"smooth\"\nmethod = \"laplace\"\niterations = 2\n\
+             [[step]]\nkind = \"smooth\"\nmethod = \"taubin\"\niterations = 2\n",
         );
+        let mut mesh = scan.clone();
+        let steps = run_steps(&r, &mut mesh, &NoProgress, 0, 2).unwrap();
+        assert!(mesh.positions != scan.positions);
+        assert!(outward(&mesh));
+        assert_eq!(mesh.normals.len(), scan.positions.len());
+        assert!(steps[0].figures.get("normals_refresh").is_none());
+        assert_eq!(
+            steps[1].figures["normals_refresh"]["normals"],
+            scan.positions.len()
+        );
+        // A step that does not move vertices leaves them as they are.
+        let r = recipe("[[step]]\nkind = \"seam_fix\"\n");
+        let mut mesh = scan.clone();
+        run_steps(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
+        assert_eq!(mesh.normals, scan.normals);
     }
 
     #[test]
