@@ -204,11 +204,17 @@ pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsRepo
 /// What [`refresh_normals`] did.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct NormalsRefresh {
-    /// Normals written: one for each distinct (vertex, normal) pair of the wedges.
+    /// Normals written: one for each group of a vertex's corners that shared a normal.
     pub normals: usize,
     /// Of those, normals left as they were because every triangle around them has zero area.
     pub kept: usize,
 }
+
+/// Two normals of one vertex closer than this (degrees) were one smooth normal that a file
+/// stored twice (a vertex repeated at a texture seam, its normal rounded differently); they
+/// are refreshed as one, so the seam gets no crease. A hard edge or a flat-shaded face turns
+/// its normals by far more.
+const SAME_NORMAL_DEGREES: f64 = 1.0;
 
 /// Recomputes the normals a mesh already has, after its vertices moved, without changing
 /// how they are shared: the corners of a vertex that shared a normal share the new one, and
@@ -220,21 +226,37 @@ pub struct NormalsRefresh {
 /// that the scan's own normals are not written stale.
 pub fn refresh_normals(mesh: &mut Mesh) -> NormalsRefresh {
     const NONE: Index = Index::MAX;
-    // A class per distinct (vertex, normal) pair, numbered in wedge order.
-    let mut class_of_pair = std::collections::HashMap::new();
-    let mut old_normal = Vec::new();
-    let wedge_class: Vec<Index> = mesh
-        .wedges
-        .iter()
-        .map(|w| match w.normal {
-            None => NONE,
-            Some(n) => *class_of_pair.entry((w.vertex, n)).or_insert_with(|| {
-                old_normal.push(mesh.normals[n as usize]);
-                (old_normal.len() - 1) as Index
-            }),
-        })
-        .collect();
-    drop(class_of_pair);
+    let same = SAME_NORMAL_DEGREES.to_radians().cos();
+    // The groups ("classes") of each vertex, numbered in wedge order: a list per vertex
+    // through `first` and `next`, each class with the normal it had.
+    let mut first = vec![NONE; mesh.positions.len()];
+    let mut next: Vec<Index> = Vec::new();
+    let mut old_normal: Vec<DVec3> = Vec::new();
+    let mut wedge_class = Vec::with_capacity(mesh.wedges.len());
+    for w in &mesh.wedges {
+        let Some(n) = w.normal else {
+            wedge_class.push(NONE);
+            continue;
+        };
+        let normal = mesh.normals[n as usize];
+        let unit = normal.normalize_or_zero();
+        let mut class = first[w.vertex as usize];
+        while class != NONE {
+            let had = old_normal[class as usize];
+            if had == normal || had.normalize_or_zero().dot(unit) >= same {
+                break;
+            }
+            class = next[class as usize];
+        }
+        if class == NONE {
+            class = old_normal.len() as Index;
+            old_normal.push(normal);
+            next.push(first[w.vertex as usize]);
+            first[w.vertex as usize] = class;
+        }
+        wedge_class.push(class);
+    }
+    drop((first, next));
     // Area-weighted face normals summed per class (sequential: a scatter).
     let mut sums = vec![DVec3::ZERO; old_normal.len()];
     for t in 0..mesh.triangles.len() {
@@ -342,8 +364,9 @@ mod tests {
         }
     }
 
-    /// A sphere whose normals are stale: every one points along +Z, as if its vertices had
-    /// moved after the scanner wrote them.
+    /// A sphere whose normals are stale. Shared: one per vertex, every one along +Z.
+    /// Flat-shaded: each triangle's corners have that triangle's own normal, computed before
+    /// the sphere was stretched along Z.
     fn sphere_with_stale_normals(shared: bool) -> Mesh {
         let mut m = uv_sphere(1.0, 8, 12);
         if shared {
@@ -351,10 +374,16 @@ mod tests {
                 w.normal = Some(0);
             }
             m.normals = vec![DVec3::Z];
-            m
         } else {
-            with_a_normal_per_triangle(m)
+            m = with_a_normal_per_triangle(m);
+            m.normals = (0..m.triangles.len())
+                .map(|t| m.triangle_cross(t).normalize())
+                .collect();
+            for p in &mut m.positions {
+                p.z *= 1.5;
+            }
         }
+        m
     }
 
     #[test]
@@ -374,11 +403,19 @@ mod tests {
             );
             assert!(n.dot(p.normalize()) > 0.95, "{n} at {p}");
         }
-        // A normal per triangle (flat shading): each corner's normal becomes its own
-        // triangle's, so the faces stay flat.
+        // Flat shading: each corner's normal becomes its own triangle's, so the faces stay
+        // flat on the stretched sphere. (The two triangles of a quad between two rings lie
+        // in one plane, so their corners at a vertex share one normal: fewer than 3 a
+        // triangle, more than one a vertex.)
         let mut flat = sphere_with_stale_normals(false);
+        let corner_normals = |m: &Mesh| -> Vec<DVec3> {
+            (m.triangles.iter().flatten())
+                .map(|&w| m.normals[m.wedges[w as usize].normal.unwrap() as usize])
+                .collect()
+        };
+        let stale = corner_normals(&flat);
         let r = refresh_normals(&mut flat);
-        assert_eq!(r.normals, 3 * flat.triangles.len());
+        assert!(r.normals > 2 * flat.positions.len(), "{}", r.normals);
         for t in 0..flat.triangles.len() {
             let face = flat.triangle_cross(t).normalize();
             for &w in &flat.triangles[t] {
@@ -386,8 +423,42 @@ mod tests {
                 assert!((n - face).length() < 1e-12, "{n} against {face}");
             }
         }
+        let fresh = corner_normals(&flat);
+        assert!(fresh.iter().zip(&stale).any(|(n, s)| n.dot(*s) < 0.99));
         flat.check_invariants().unwrap();
         smooth.check_invariants().unwrap();
+    }
+
+    #[test]
+    fn a_normal_stored_twice_is_refreshed_as_one() {
+        // A vertex's corners split between two normals that differ in the last digits, as
+        // a file that repeats a vertex at a texture seam may store them.
+        let mut m = sphere_with_stale_normals(true);
+        m.normals.push(DVec3::new(1e-9, 0.0, 1.0));
+        let vertex = m.wedges[m.triangles[20][0] as usize].vertex;
+        let twin = m.wedges.len() as Index;
+        m.wedges.push(Wedge {
+            normal: Some(1),
+            ..m.wedges[m.triangles[20][0] as usize]
+        });
+        m.triangles[20][0] = twin;
+        let users: Vec<Index> = (0..m.wedges.len() as Index)
+            .filter(|&w| m.wedges[w as usize].vertex == vertex)
+            .collect();
+        assert_eq!(users.len(), 2);
+        let r = refresh_normals(&mut m);
+        assert_eq!(r.normals, m.positions.len());
+        let [a, b] = [users[0], users[1]].map(|w| m.wedges[w as usize].normal);
+        assert_eq!(a, b);
+        // Two normals far apart at one vertex (a hard edge) stay two.
+        let mut m = sphere_with_stale_normals(true);
+        m.normals.push(DVec3::X);
+        m.wedges.push(Wedge {
+            normal: Some(1),
+            ..m.wedges[m.triangles[20][0] as usize]
+        });
+        m.triangles[20][0] = twin;
+        assert_eq!(refresh_normals(&mut m).normals, m.positions.len() + 1);
     }
 
     #[test]

@@ -431,12 +431,12 @@ mod tests {
         let steps = run_steps(&r, &mut mesh, &NoProgress, 0, 2).unwrap();
         assert_eq!(steps[1].figures["wedges_before"], vertices);
         assert_eq!(mesh.normals.len(), vertices);
-        // No normals step: the scan's normals stay shared as they were (a normal per
-        // triangle, one wedge per corner), refreshed after relax (one per corner now).
+        // No normals step: the scan's wedges stay (one per corner), and their normals,
+        // all equal, are refreshed as one per vertex after relax.
         let r = recipe("[[step]]\nkind = \"relax\"\nmax_iterations = 2\n");
         let mut mesh = scan.clone();
         run_steps(&r, &mut mesh, &NoProgress, 0, 1).unwrap();
-        assert_eq!((mesh.wedges.len(), mesh.normals.len()), (corners, corners));
+        assert_eq!((mesh.wedges.len(), mesh.normals.len()), (corners, vertices));
     }
 
     #[test]
