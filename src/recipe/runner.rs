@@ -276,7 +276,9 @@ impl TextureFollow {
 /// surface, shared as the scan shared them, adding `normals_refresh` to the step's figures.
 /// Without this they would be written as the scanner computed them, for a surface the
 /// steps have since smoothed. A mesh without normals, or one whose recipe has a `normals`
-/// step (the runner dropped them before the steps), has none to refresh.
+/// step (the runner dropped them before the steps), has none to refresh. (`decimate`
+/// carries normals as attributes by its own rule, `normal_weight`; what it writes is left
+/// as it is.)
 fn refresh_scan_normals(mesh: &mut Mesh, figures: &mut Value) {
     if mesh.normals.is_empty() {
         return;
@@ -350,9 +352,11 @@ fn run_one(
     if !next.is_some_and(|s| s.uses_fairing_connectivity()) {
         cx.fairing = None;
     }
-    let run_goes_on = next.is_some_and(|s| s.moves_vertices());
-    follow.end(mesh, run_goes_on && before.is_none(), &mut figures);
-    if step.as_recipe_step().moves_vertices() && !(run_goes_on && before.is_none()) {
+    // The run of vertex-moving steps goes on and nothing measures the mesh in between: the
+    // texture and the scan's own normals follow once, after the run's last step.
+    let unseen_run_goes_on = next.is_some_and(|s| s.moves_vertices()) && before.is_none();
+    follow.end(mesh, unseen_run_goes_on, &mut figures);
+    if step.as_recipe_step().moves_vertices() && !unseen_run_goes_on {
         refresh_scan_normals(mesh, &mut figures);
     }
     debug_assert!(mesh.check_invariants().is_ok(), "{kind}");
