@@ -132,13 +132,16 @@ fn corner_classes(mesh: &Mesh, crease_angle: Option<f64>) -> (Vec<Index>, Vec<In
     (classes, class_vertex)
 }
 
-/// Recomputes normals and writes them to the wedges.
-pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsReport {
-    let wedges_before = mesh.wedges.len();
-    let (corner_class, class_vertex) = corner_classes(mesh, params.crease_angle);
-
-    // Weighted face normals per corner, summed per class (sequential: a scatter).
-    let mut sums = vec![DVec3::ZERO; class_vertex.len()];
+/// Each class's sum of the weighted normals of the faces at its corners (sequential: a
+/// scatter). `class_of(c)` is corner `c`'s (`3t + k`) class, `None` for a corner that takes
+/// no part.
+fn class_sums(
+    mesh: &Mesh,
+    weighting: NormalWeighting,
+    classes: usize,
+    class_of: impl Fn(usize) -> Option<usize>,
+) -> Vec<DVec3> {
+    let mut sums = vec![DVec3::ZERO; classes];
     for t in 0..mesh.triangles.len() {
         let cross = mesh.triangle_cross(t);
         if !cross.is_finite() {
@@ -146,7 +149,10 @@ pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsRepo
         }
         let p = mesh.triangle_positions(t);
         for k in 0..3 {
-            let weight = match params.weighting {
+            let Some(class) = class_of(3 * t + k) else {
+                continue;
+            };
+            let weight = match weighting {
                 NormalWeighting::Area => cross,
                 NormalWeighting::Angle => {
                     let (e1, e2) = (p[(k + 1) % 3] - p[k], p[(k + 2) % 3] - p[k]);
@@ -154,10 +160,21 @@ pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsRepo
                 }
             };
             if weight.is_finite() {
-                sums[corner_class[3 * t + k] as usize] += weight;
+                sums[class] += weight;
             }
         }
     }
+    sums
+}
+
+/// Recomputes normals and writes them to the wedges.
+pub fn recompute_normals(mesh: &mut Mesh, params: &NormalsParams) -> NormalsReport {
+    let wedges_before = mesh.wedges.len();
+    let (corner_class, class_vertex) = corner_classes(mesh, params.crease_angle);
+
+    let sums = class_sums(mesh, params.weighting, class_vertex.len(), |c| {
+        Some(corner_class[c] as usize)
+    });
     let mut zero_normals = 0;
     let normals: Vec<DVec3> = sums
         .iter()
@@ -257,20 +274,10 @@ pub fn refresh_normals(mesh: &mut Mesh) -> NormalsRefresh {
         wedge_class.push(class);
     }
     drop((first, next));
-    // Area-weighted face normals summed per class (sequential: a scatter).
-    let mut sums = vec![DVec3::ZERO; old_normal.len()];
-    for t in 0..mesh.triangles.len() {
-        let cross = mesh.triangle_cross(t);
-        if !cross.is_finite() {
-            continue;
-        }
-        for &w in &mesh.triangles[t] {
-            let class = wedge_class[w as usize];
-            if class != NONE {
-                sums[class as usize] += cross;
-            }
-        }
-    }
+    let sums = class_sums(mesh, NormalWeighting::Area, old_normal.len(), |c| {
+        let class = wedge_class[mesh.triangles[c / 3][c % 3] as usize];
+        (class != NONE).then_some(class as usize)
+    });
     let mut kept = 0;
     mesh.normals = sums
         .iter()
@@ -453,6 +460,7 @@ mod tests {
         // Two normals far apart at one vertex (a hard edge) stay two.
         let mut m = sphere_with_stale_normals(true);
         m.normals.push(DVec3::X);
+        let twin = m.wedges.len() as Index;
         m.wedges.push(Wedge {
             normal: Some(1),
             ..m.wedges[m.triangles[20][0] as usize]
