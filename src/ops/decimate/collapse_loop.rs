@@ -219,6 +219,11 @@ fn fan_candidates<const M: usize, O: CollapseOperator>(
 ) {
     out.clear();
     memo.clear();
+    // Where each triangle sits in the heap is read when its new key is set, after all the
+    // fan's costs: asked for now, it arrives meanwhile.
+    for &c in &sc.corners {
+        heap.prefetch(c / 3);
+    }
     for &c in &sc.corners {
         let (u, k) = (c as usize / 3, c as usize % 3);
         if aux[u] & FROZEN != 0 {

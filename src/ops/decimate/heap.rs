@@ -103,6 +103,13 @@ impl IndexedHeap {
         (i != ABSENT).then(|| self.at(i as usize).0)
     }
 
+    /// Asks the memory for where `t` is in the heap, which re-keying it reads first
+    /// ([`super::prefetch`]).
+    #[inline]
+    pub fn prefetch(&self, t: u32) {
+        super::prefetch::prefetch(&self.pos, t as usize);
+    }
+
     /// The smallest entry's item, left in place.
     #[inline]
     pub fn peek(&self) -> Option<u32> {

@@ -18,6 +18,7 @@ pub mod edge_collapse;
 pub mod guards;
 pub mod halves;
 mod heap;
+mod prefetch;
 pub mod quadric;
 pub mod work;
 

@@ -294,6 +294,14 @@ impl<const M: usize> WedgeQuadrics<M> {
         q
     }
 
+    /// Asks the memory for wedge `w`'s quadric ([`super::prefetch`]).
+    #[inline]
+    pub fn prefetch(&self, w: usize) {
+        let (s64, s32) = self.strides();
+        super::prefetch::prefetch_span(&self.f64s, w * s64, s64);
+        super::prefetch::prefetch_span(&self.f32s, w * s32, s32);
+    }
+
     #[inline]
     pub fn set(&mut self, w: usize, q: &AttrPart<M>) {
         let (s64, s32) = self.strides();
@@ -405,6 +413,14 @@ impl<const M: usize> WedgeAttrs<M> {
         // A loop over the constant M (unrolled) rather than a copy of run-time length
         // (a `memcpy` call per wedge in the collapse loop).
         std::array::from_fn(|j| if j < wide { a[j] } else { b[j - wide] as f64 })
+    }
+
+    /// Asks the memory for wedge `w`'s record ([`super::prefetch`]).
+    #[inline]
+    pub fn prefetch(&self, w: usize) {
+        let (wide, narrow) = (self.wide, M - self.wide);
+        super::prefetch::prefetch_span(&self.f64s, w * wide, wide);
+        super::prefetch::prefetch_span(&self.f32s, w * narrow, narrow);
     }
 
     /// The first two attributes (texture coordinates when the mesh has them).

@@ -11,6 +11,7 @@ use super::guards::{
     DEGENERATE_QUALITY, LinkScratch, LinkShape, SLIVER_QUALITY, VClass, link_shape, quality,
     uv_area,
 };
+use super::prefetch::prefetch;
 use super::quadric::{
     AttrPart, Quadric, Reduced, WedgeAttrs, WedgeQuadrics, Weights, cross, dense_condition_number,
     dot, sub,
@@ -872,22 +873,31 @@ impl<const M: usize> Work<M> {
     /// their latency. No effect on what is computed.
     #[inline]
     pub fn prefetch_triangle(&self, t: usize) {
-        #[cfg(target_arch = "x86_64")]
         for v in self.tv[t] {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
             let v = v as usize;
-            // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
-            // faults, whatever the address (`wrapping_add` makes no in-bounds claim).
-            unsafe {
-                _mm_prefetch::<_MM_HINT_T0>(self.vred.as_ptr().wrapping_add(v).cast());
-                _mm_prefetch::<_MM_HINT_T0>(self.vfirst.as_ptr().wrapping_add(v).cast());
-                _mm_prefetch::<_MM_HINT_T0>(self.pos.as_ptr().wrapping_add(v).cast());
-                _mm_prefetch::<_MM_HINT_T0>(self.star.as_ptr().wrapping_add(v).cast());
-                _mm_prefetch::<_MM_HINT_T0>(self.class.as_ptr().wrapping_add(v).cast());
-            }
+            prefetch(&self.vred, v);
+            prefetch(&self.vfirst, v);
+            prefetch(&self.pos, v);
+            prefetch(&self.star, v);
+            prefetch(&self.class, v);
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = t;
+    }
+
+    /// Asks the memory for what the rest of a collapse reads of a surviving corner's
+    /// triangle `t` and of its next vertex `x` (met as the star is gathered): the guards read
+    /// `x`'s position, `t`'s input normal and its wedges' texture coordinates, and re-keying
+    /// the fan costs the side to `x` from its reduced quadric, class and star size. Every
+    /// vertex of a closed ring is the next vertex of one surviving corner.
+    #[inline]
+    fn prefetch_ring_corner(&self, t: usize, x: usize, wx: usize) {
+        prefetch(&self.pos, x);
+        prefetch(&self.onormal, t);
+        prefetch(&self.vred, x);
+        prefetch(&self.star, x);
+        prefetch(&self.class, x);
+        if self.has_uv {
+            self.wattr.prefetch(wx);
+        }
     }
 
     /// The heap key of merging S without gathering its star: the vertices' reduced systems
@@ -988,9 +998,17 @@ impl<const M: usize> Work<M> {
                         }
                     } else {
                         sc.corners.push(c);
+                        let next = (k + 1) % 3;
+                        self.prefetch_ring_corner(
+                            t,
+                            vs[next] as usize,
+                            self.tris[t][next] as usize,
+                        );
                     }
                     let w = self.tris[t][k];
                     if sc.lw.insert(w).1 {
+                        // Its quadric is read when the wedges are grouped, next.
+                        self.wq.prefetch(w as usize);
                         sc.lw_si.push(si as u8);
                     }
                 }
