@@ -219,10 +219,17 @@ fn fan_candidates<const M: usize, O: CollapseOperator>(
 ) {
     out.clear();
     memo.clear();
-    // Where each triangle sits in the heap is read when its new key is set, after all the
-    // fan's costs: asked for now, it arrives meanwhile.
+    // Re-keying a fan triangle reads its byte in `aux`, where it sits in the heap, and then
+    // its heap entry (its key now, to be changed after): asked for in two passes, the
+    // positions first and the entries once the positions are in, these misses overlap
+    // instead of coming one after another (docs/decimation.md, "Where the collapse loop
+    // waits").
     for &c in &sc.corners {
         heap.prefetch(c / 3);
+        super::prefetch::prefetch(aux, c as usize / 3);
+    }
+    for &c in &sc.corners {
+        heap.prefetch_entry(c / 3);
     }
     for &c in &sc.corners {
         let (u, k) = (c as usize / 3, c as usize % 3);

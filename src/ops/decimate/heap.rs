@@ -103,11 +103,20 @@ impl IndexedHeap {
         (i != ABSENT).then(|| self.at(i as usize).0)
     }
 
-    /// Asks the memory for where `t` is in the heap, which re-keying it reads first
-    /// ([`super::prefetch`]).
+    /// Asks the memory for where `t` is in the heap ([`super::prefetch`]).
     #[inline]
     pub fn prefetch(&self, t: u32) {
         super::prefetch::prefetch(&self.pos, t as usize);
+    }
+
+    /// Asks the memory for `t`'s entry (its key); reads where it is, so best called once
+    /// [`IndexedHeap::prefetch`] has brought that in.
+    #[inline]
+    pub fn prefetch_entry(&self, t: u32) {
+        let i = self.pos[t as usize];
+        if i != ABSENT {
+            super::prefetch::prefetch(&self.blocks, (i as usize + PAD) / D);
+        }
     }
 
     /// The smallest entry's item, left in place.

@@ -28,10 +28,30 @@ pub(super) fn prefetch_span<T>(items: &[T], first: usize, count: usize) {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
         let start = items.as_ptr().wrapping_add(first).cast::<i8>();
         let bytes = count * size_of::<T>();
-        for l in 0..lines_spanned(start as usize, bytes) {
-            // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
-            // faults, whatever the address (`wrapping_add` makes no in-bounds claim).
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(l * LINE)) };
+        // SAFETY (every call below): a prefetch is only a hint: it reads nothing into the
+        // program and never faults, whatever the address (`wrapping_add` makes no in-bounds
+        // claim).
+        let hint = |at: usize| unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(at)) };
+        match bytes {
+            0 => {}
+            // The lines of the first byte, of the one 64 bytes on and of the last byte are
+            // every line of up to 128 bytes (a line asked for twice costs next to nothing);
+            // for the records read here (at most 80 bytes) the sizes are mostly constants,
+            // so these branches fold away.
+            1..=LINE => {
+                hint(0);
+                hint(bytes - 1);
+            }
+            65..=128 => {
+                hint(0);
+                hint(LINE);
+                hint(bytes - 1);
+            }
+            _ => {
+                for l in 0..lines_spanned(start as usize, bytes) {
+                    hint(l * LINE);
+                }
+            }
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
