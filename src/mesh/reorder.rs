@@ -38,37 +38,94 @@ fn morton(p: DVec3, lo: DVec3, extent: f64) -> u64 {
     spread(q.x as u64) | spread(q.y as u64) << 1 | spread(q.z as u64) << 2
 }
 
-/// The order that sorts `keys` (ties by index), as old → new index.
-fn new_indices(keys: Vec<u64>) -> Vec<Index> {
-    let mut order: Vec<(u64, Index)> = keys
-        .into_iter()
-        .enumerate()
-        .map(|(i, k)| (k, i as Index))
-        .collect();
-    // Keys are unique with their index, so the unstable sort is deterministic.
-    order.par_sort_unstable();
-    let mut new = vec![0; order.len()];
-    for (rank, &(_, old)) in order.iter().enumerate() {
-        new[old as usize] = rank as Index;
-    }
-    new
+/// A renumbering of `n` elements: where each old index goes, and which old index each new
+/// one takes (the inverse, for gathering).
+struct Renumbering {
+    new_of_old: Vec<Index>,
+    old_of_new: Vec<Index>,
 }
 
-/// Moves `values[old]` to `values[new[old]]`.
-fn permute<T: Copy + Send + Sync>(values: &mut Vec<T>, new: &[Index]) {
-    if values.is_empty() {
-        return;
+impl Renumbering {
+    /// The order that sorts `keys` (ties by index).
+    fn sorting(keys: Vec<u64>) -> Renumbering {
+        let mut order: Vec<(u64, Index)> = keys
+            .into_iter()
+            .enumerate()
+            .map(|(i, k)| (k, i as Index))
+            .collect();
+        // Keys are unique with their index, so the unstable sort is deterministic.
+        order.par_sort_unstable();
+        Renumbering::from_old_of_new(order.into_iter().map(|(_, old)| old).collect())
     }
-    let mut out = values.clone();
-    for (old, &value) in values.iter().enumerate() {
-        out[new[old] as usize] = value;
+
+    /// The order that sorts `keys`, each below `range` (ties by index): a counting sort, two
+    /// passes and no comparisons, where the wedges' keys are vertex numbers and the
+    /// triangles' wedge numbers.
+    fn sorting_small(keys: Vec<Index>, range: usize) -> Renumbering {
+        let mut next = vec![0 as Index; range + 1];
+        for &k in &keys {
+            next[k as usize + 1] += 1;
+        }
+        for i in 1..next.len() {
+            next[i] += next[i - 1];
+        }
+        let new_of_old = keys
+            .iter()
+            .map(|&k| {
+                let new = next[k as usize];
+                next[k as usize] += 1;
+                new
+            })
+            .collect();
+        Renumbering::from_new_of_old(new_of_old)
     }
-    *values = out;
+
+    fn from_old_of_new(old_of_new: Vec<Index>) -> Renumbering {
+        let mut new_of_old = vec![0; old_of_new.len()];
+        for (new, &old) in old_of_new.iter().enumerate() {
+            new_of_old[old as usize] = new as Index;
+        }
+        Renumbering {
+            new_of_old,
+            old_of_new,
+        }
+    }
+
+    fn from_new_of_old(new_of_old: Vec<Index>) -> Renumbering {
+        let mut old_of_new = vec![0; new_of_old.len()];
+        for (old, &new) in new_of_old.iter().enumerate() {
+            old_of_new[new as usize] = old as Index;
+        }
+        Renumbering {
+            new_of_old,
+            old_of_new,
+        }
+    }
+
+    /// The new index of old element `old`.
+    #[inline]
+    fn of(&self, old: Index) -> Index {
+        self.new_of_old[old as usize]
+    }
+
+    /// Moves `values[old]` to `values[new]`: each new element gathered from its old place,
+    /// in parallel (an array the length of the renumbering; an empty one stays empty).
+    fn permute<T: Copy + Send + Sync>(&self, values: &mut Vec<T>) {
+        if values.is_empty() {
+            return;
+        }
+        debug_assert_eq!(values.len(), self.old_of_new.len());
+        *values = self
+            .old_of_new
+            .par_iter()
+            .map(|&old| values[old as usize])
+            .collect();
+    }
 }
 
 /// Old → new indices of `count` elements numbered by their first use in `uses` (the
 /// unused after them, in their old order).
-fn by_first_use(count: usize, uses: impl Iterator<Item = Index>) -> Vec<Index> {
+fn by_first_use(count: usize, uses: impl Iterator<Item = Index>) -> Renumbering {
     const UNSEEN: Index = Index::MAX;
     let mut new = vec![UNSEEN; count];
     let mut next = 0;
@@ -84,7 +141,7 @@ fn by_first_use(count: usize, uses: impl Iterator<Item = Index>) -> Vec<Index> {
             next += 1;
         }
     }
-    new
+    Renumbering::from_new_of_old(new)
 }
 
 impl Mesh {
@@ -104,48 +161,47 @@ impl Mesh {
         } else {
             vec![0; self.positions.len()]
         };
-        let vertex = new_indices(keys);
-        permute(&mut self.positions, &vertex);
-        permute(&mut self.colors, &vertex);
+        let vertex = Renumbering::sorting(keys);
+        vertex.permute(&mut self.positions);
+        vertex.permute(&mut self.colors);
 
-        let wedge = new_indices(
-            self.wedges
-                .iter()
-                .map(|w| u64::from(vertex[w.vertex as usize]))
-                .collect(),
+        self.wedges
+            .par_iter_mut()
+            .for_each(|w| w.vertex = vertex.of(w.vertex));
+        let wedge = Renumbering::sorting_small(
+            self.wedges.iter().map(|w| w.vertex).collect(),
+            self.positions.len(),
         );
-        for w in &mut self.wedges {
-            w.vertex = vertex[w.vertex as usize];
-        }
-        permute(&mut self.wedges, &wedge);
-        for t in &mut self.triangles {
-            *t = t.map(|w| wedge[w as usize]);
-        }
+        wedge.permute(&mut self.wedges);
+        self.triangles
+            .par_iter_mut()
+            .for_each(|t| *t = t.map(|w| wedge.of(w)));
 
         let texcoord = by_first_use(
             self.texcoords.len(),
             self.wedges.iter().filter_map(|w| w.texcoord),
         );
-        permute(&mut self.texcoords, &texcoord);
+        texcoord.permute(&mut self.texcoords);
         let normal = by_first_use(
             self.normals.len(),
             self.wedges.iter().filter_map(|w| w.normal),
         );
-        permute(&mut self.normals, &normal);
-        for w in &mut self.wedges {
-            w.texcoord = w.texcoord.map(|t| texcoord[t as usize]);
-            w.normal = w.normal.map(|n| normal[n as usize]);
-        }
+        normal.permute(&mut self.normals);
+        self.wedges.par_iter_mut().for_each(|w| {
+            w.texcoord = w.texcoord.map(|t| texcoord.of(t));
+            w.normal = w.normal.map(|n| normal.of(n));
+        });
 
-        let triangle = new_indices(
+        let triangle = Renumbering::sorting_small(
             self.triangles
                 .iter()
-                .map(|t| u64::from(*t.iter().min().expect("three corners")))
+                .map(|t| *t.iter().min().expect("three corners"))
                 .collect(),
+            self.wedges.len(),
         );
-        permute(&mut self.triangles, &triangle);
-        permute(&mut self.triangle_materials, &triangle);
-        permute(&mut self.triangle_origins, &triangle);
+        triangle.permute(&mut self.triangles);
+        triangle.permute(&mut self.triangle_materials);
+        triangle.permute(&mut self.triangle_origins);
     }
 }
 
@@ -272,5 +328,26 @@ mod tests {
         let (lo, extent) = (DVec3::ZERO, 1.0);
         assert!(morton(DVec3::ZERO, lo, extent) < morton(DVec3::splat(0.1), lo, extent));
         assert_eq!(morton(DVec3::ONE, lo, extent), (1 << (3 * BITS)) - 1);
+    }
+
+    /// The counting sort orders like the comparison sort: by key, ties by index, and each
+    /// renumbering's two directions are inverses.
+    #[test]
+    fn counting_sort_is_the_sort_by_key_then_index() {
+        for (n, range) in [(0, 1), (1, 1), (1000, 7), (5000, 1000), (3000, 100_000)] {
+            let keys: Vec<Index> = (0..n as u64)
+                .map(|i| ((i * 2_654_435_761) % 1_000_003 % range) as Index)
+                .collect();
+            let counted = Renumbering::sorting_small(keys.clone(), range as usize);
+            let sorted = Renumbering::sorting(keys.iter().map(|&k| u64::from(k)).collect());
+            assert_eq!(counted.new_of_old, sorted.new_of_old);
+            assert_eq!(counted.old_of_new, sorted.old_of_new);
+            for (new, &old) in counted.old_of_new.iter().enumerate() {
+                assert_eq!(counted.of(old), new as Index);
+            }
+            let mut values: Vec<Index> = keys.clone();
+            counted.permute(&mut values);
+            assert!(values.is_sorted());
+        }
     }
 }
