@@ -775,9 +775,56 @@ fn parse_index(s: &[u8], i: &mut usize) -> Option<i64> {
     Some(if negative { -value } else { value })
 }
 
+/// A number token as `str::parse` reads it, to the bit. The plain decimals scanners write
+/// take [`plain_decimal`]'s shortcut; anything else (exponents, long mantissas, `inf`, bad
+/// tokens) the standard parser.
 #[inline]
 fn parse_f64(token: &[u8]) -> Option<f64> {
-    std::str::from_utf8(token).ok()?.parse().ok()
+    plain_decimal(token).or_else(|| std::str::from_utf8(token).ok()?.parse().ok())
+}
+
+/// Powers of ten exactly representable in `f64`.
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19, 1e20, 1e21, 1e22,
+];
+
+/// `[+-]digits[.digits]` (or `.digits`) whose digits, read as one integer `m`, are at most
+/// 2^53, with at most 22 after the point: then `m` and `10^k` are exact in `f64` and
+/// `m / 10^k` is one correctly rounded division, which is the correctly rounded value of
+/// the decimal (Clinger's fast path, the one the standard parser takes first as well).
+/// `None` for any other token, which the caller hands to the standard parser. Most of a
+/// scan's text is such numbers (`-12.345678`), and this skips the UTF-8 check and the
+/// general grammar for them.
+#[inline]
+fn plain_decimal(token: &[u8]) -> Option<f64> {
+    let (negative, digits) = match token.split_first()? {
+        (b'-', rest) => (true, rest),
+        (b'+', rest) => (false, rest),
+        _ => (false, token),
+    };
+    let mut mantissa: u64 = 0;
+    let mut count = 0;
+    let mut fraction = None;
+    for (i, &b) in digits.iter().enumerate() {
+        match b {
+            b'0'..=b'9' => {
+                count += 1;
+                if count > 19 {
+                    return None;
+                }
+                mantissa = mantissa * 10 + u64::from(b - b'0');
+            }
+            b'.' if fraction.is_none() => fraction = Some(i),
+            _ => return None,
+        }
+    }
+    let after_point = fraction.map_or(0, |i| digits.len() - i - 1);
+    if count == 0 || mantissa > 1 << 53 || after_point >= POW10.len() {
+        return None;
+    }
+    let value = mantissa as f64 / POW10[after_point];
+    Some(if negative { -value } else { value })
 }
 
 /// The rest of a statement as text, comments stripped, trimmed.
@@ -854,6 +901,93 @@ mod tests {
                 corner(1, None, None),
                 corner(2, None, None)
             ]
+        );
+    }
+
+    /// The shortcut reads every token as the standard parser does, to the bit, and leaves
+    /// to it what it cannot read exactly.
+    #[test]
+    fn plain_decimals_read_as_the_standard_parser_reads_them() {
+        let mut tokens: Vec<String> = [
+            "0",
+            "-0",
+            "+0",
+            "0.0",
+            "-0.0",
+            "1.",
+            ".5",
+            "-.5",
+            "+.25",
+            "00012.3400",
+            "7",
+            "9007199254740992",
+            "9007199254740993",
+            "-9007199254740992.0",
+            "1234567890123456789",
+            "12345678901234567890",
+            "0.1",
+            "0.2",
+            "0.3",
+            "0.0000000000000000000001",
+            "0.00000000000000000000001",
+            "3.141592653589793",
+            "2.718281828459045",
+            "1e5",
+            "1E-3",
+            "-2.5e+10",
+            "inf",
+            "-inf",
+            "NaN",
+            ".",
+            "-",
+            "+",
+            "",
+            "1.2.3",
+            "1-2",
+            "--1",
+            "1,5",
+            "0x10",
+            " 1",
+            "１",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+        for _ in 0..200_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let digits = (x % 19) as usize + 1;
+            let point = (x >> 8) as usize % (digits + 2);
+            let mantissa = (x >> 16) % 10u64.pow(digits as u32);
+            let mut t = format!("{mantissa:0digits$}");
+            if point <= digits {
+                t.insert(point, '.');
+            }
+            if x & 1 == 1 {
+                t.insert(0, '-');
+            }
+            tokens.push(t);
+            // And what scanners write: a float printed with 6 or 9 decimals.
+            let v = f64::from_bits(x) % 1e4;
+            if v.is_finite() {
+                tokens.push(format!("{v:.6}"));
+                tokens.push(format!("{v:.9}"));
+            }
+        }
+        let mut shortcut = 0;
+        for t in &tokens {
+            let standard: Option<f64> = t.parse().ok();
+            let got = parse_f64(t.as_bytes());
+            assert_eq!(got.map(f64::to_bits), standard.map(f64::to_bits), "{t:?}");
+            shortcut += usize::from(plain_decimal(t.as_bytes()).is_some());
+        }
+        // Most tokens take the shortcut (else this would test only the standard parser).
+        assert!(
+            shortcut > tokens.len() * 9 / 10,
+            "{shortcut} of {}",
+            tokens.len()
         );
     }
 
