@@ -216,7 +216,7 @@ impl<'a> TriangleBvh<'a> {
     }
 
     /// [`TriangleBvh::search`]; `SKIP_FAR` lets a leaf skip a triangle whose box is farther
-    /// than the best distance so far (see [`TriangleBvh::may_be_nearer`]). Both settings
+    /// than the best distance so far (see [`may_be_nearer`]). Both settings
     /// give the same answer to the bit (tested); `false` is there for that test.
     fn search_with<const SKIP_FAR: bool>(&self, p: DVec3, start: Option<TriangleHit>) -> Search {
         let mut cost = QueryCost::default();
