@@ -38,8 +38,7 @@ const MAX_DEPTH: usize = 64;
 pub struct QueryCost {
     /// Nodes visited, inner and leaf.
     pub nodes: u32,
-    /// Triangles whose closest point was computed (those of the leaves visited, but for
-    /// the ones whose boxes were farther than the best found by then).
+    /// Triangles whose closest point was computed.
     pub triangles: u32,
 }
 
@@ -212,13 +211,6 @@ impl<'a> TriangleBvh<'a> {
     /// an unchanged soup, but it changes which of two triangles within rounding of a shared
     /// vertex answers (a texture seam), so outputs of scans would change: not done.
     pub fn search(&self, p: DVec3, start: Option<TriangleHit>) -> Search {
-        self.search_with::<true>(p, start)
-    }
-
-    /// [`TriangleBvh::search`]; `SKIP_FAR` lets a leaf skip a triangle whose box is farther
-    /// than the best distance so far (see [`may_be_nearer`]). Both settings
-    /// give the same answer to the bit (tested); `false` is there for that test.
-    fn search_with<const SKIP_FAR: bool>(&self, p: DVec3, start: Option<TriangleHit>) -> Search {
         let mut cost = QueryCost::default();
         if self.order.is_empty() {
             return Search {
@@ -247,13 +239,9 @@ impl<'a> TriangleBvh<'a> {
             let n = &self.nodes[node as usize];
             if n.count > 0 {
                 let first = n.first as usize;
+                cost.triangles += n.count;
                 for i in first..first + n.count as usize {
-                    let corners = self.corners[i].map(|v| self.mesh.positions[v as usize]);
-                    if SKIP_FAR && !may_be_nearer(corners, p, best_d2) {
-                        continue;
-                    }
-                    cost.triangles += 1;
-                    let hit = self.hit_at(i, corners, p);
+                    let hit = self.leaf_hit(i, p);
                     if hit.distance_squared < best_d2 {
                         best_d2 = hit.distance_squared;
                         best = Some(hit);
@@ -398,17 +386,7 @@ impl<'a> TriangleBvh<'a> {
     /// The closest point to `p` of the triangle at `i` in leaf order.
     #[inline]
     fn leaf_hit(&self, i: usize, p: DVec3) -> TriangleHit {
-        self.hit_at(
-            i,
-            self.corners[i].map(|v| self.mesh.positions[v as usize]),
-            p,
-        )
-    }
-
-    /// The closest point to `p` of the triangle at `i` in leaf order, whose corners are
-    /// `[a, b, c]`.
-    #[inline]
-    fn hit_at(&self, i: usize, [a, b, c]: [DVec3; 3], p: DVec3) -> TriangleHit {
+        let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
         let (point, bary) = closest_on_triangle(p, a, b, c);
         TriangleHit {
             triangle: self.order[i],
@@ -460,25 +438,6 @@ impl Drop for TriangleBvh<'_> {
             );
         }
     }
-}
-
-/// Whether the triangle `[a, b, c]` may hold a point nearer `p` than `best_d2` (squared),
-/// judged by its box: most triangles of a leaf the search enters are farther, and the box
-/// costs a few comparisons against the closest point's dozens of operations and branches.
-///
-/// It must never turn away a triangle whose computed distance is below `best_d2`, or the
-/// answer would change. The box's gap is computed almost exactly (differences of nearby
-/// values), but a closest point carries the rounding of coordinates of `p`'s magnitude, so
-/// a triangle within that rounding of `p` can come out nearer than its box: the bound allows
-/// a relative 1e-9 and an absolute 1e-12 of `p`'s largest coordinate, both far above the
-/// rounding and far below any distance that separates triangles.
-#[inline(always)]
-fn may_be_nearer([a, b, c]: [DVec3; 3], p: DVec3, best_d2: f64) -> bool {
-    let gap = (a.min(b).min(c) - p)
-        .max(p - a.max(b).max(c))
-        .max(DVec3::ZERO);
-    let slack = 1e-12 * p.abs().max_element();
-    gap.length_squared() <= best_d2 * (1.0 + 1e-9) + slack * slack
 }
 
 /// Node counts of the subtrees `build` makes: they depend only on the number of triangles
@@ -715,59 +674,6 @@ mod tests {
                 let hinted = bvh.closest(p, Some(start)).unwrap();
                 assert_eq!(hinted.distance_squared, hit.distance_squared);
             }
-        }
-    }
-
-    /// Skipping a leaf's triangles by their boxes changes no answer, to the bit: at random
-    /// points, at points on the surface (corners, edge midpoints, inside faces, where
-    /// triangles tie and the closest point's rounding matters) and with start candidates.
-    #[test]
-    fn skipping_far_triangles_changes_no_answer() {
-        let mut bumpy = uv_sphere(1.0, 24, 32);
-        for (i, p) in bumpy.positions.iter_mut().enumerate() {
-            *p *= 1.0 + 0.05 * ((i as f64) * 0.7).sin();
-            *p += DVec3::new(1e3, -2e3, 5e2);
-        }
-        for mesh in [uv_sphere(1.0, 12, 20), grid(7, 5), bumpy] {
-            let bvh = TriangleBvh::new(&mesh, (0..mesh.triangles.len() as u32).collect());
-            let (lo, hi) = mesh
-                .positions
-                .iter()
-                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &q| {
-                    (l.min(q), h.max(q))
-                });
-            let mut r = rng(17);
-            let mut points: Vec<DVec3> = (0..3000)
-                .map(|_| {
-                    lo + (hi - lo) * DVec3::new(r.random(), r.random(), r.random()) * 1.4
-                        - (hi - lo) * 0.2
-                })
-                .collect();
-            for t in 0..mesh.triangles.len() {
-                let [a, b, c] = mesh.triangle_positions(t);
-                let (u, v): (f64, f64) = (r.random(), r.random());
-                let (u, v) = if u + v > 1.0 {
-                    (1.0 - u, 1.0 - v)
-                } else {
-                    (u, v)
-                };
-                points.extend([a, (a + b) * 0.5, a + (b - a) * u + (c - a) * v]);
-            }
-            let (mut tested, mut tested_all) = (0, 0);
-            for (i, &p) in points.iter().enumerate() {
-                let start = (i % 3 == 0).then(|| bvh.hit_on(p, (i % mesh.triangles.len()) as u32));
-                let fast = bvh.search_with::<true>(p, start);
-                let full = bvh.search_with::<false>(p, start);
-                assert_eq!(fast.hit, full.hit, "{p}");
-                assert_eq!(
-                    fast.cost.nodes, full.cost.nodes,
-                    "the traversal is the same"
-                );
-                tested += fast.cost.triangles;
-                tested_all += full.cost.triangles;
-            }
-            // The skip is taken (else this test would prove nothing).
-            assert!(tested < tested_all * 3 / 4, "{tested} of {tested_all}");
         }
     }
 
