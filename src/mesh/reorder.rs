@@ -81,24 +81,16 @@ impl Renumbering {
     }
 
     fn from_old_of_new(old_of_new: Vec<Index>) -> Renumbering {
-        let mut new_of_old = vec![0; old_of_new.len()];
-        for (new, &old) in old_of_new.iter().enumerate() {
-            new_of_old[old as usize] = new as Index;
-        }
         Renumbering {
-            new_of_old,
+            new_of_old: inverse(&old_of_new),
             old_of_new,
         }
     }
 
     fn from_new_of_old(new_of_old: Vec<Index>) -> Renumbering {
-        let mut old_of_new = vec![0; new_of_old.len()];
-        for (old, &new) in new_of_old.iter().enumerate() {
-            old_of_new[new as usize] = old as Index;
-        }
         Renumbering {
+            old_of_new: inverse(&new_of_old),
             new_of_old,
-            old_of_new,
         }
     }
 
@@ -121,6 +113,15 @@ impl Renumbering {
             .map(|&old| values[old as usize])
             .collect();
     }
+}
+
+/// The inverse of the permutation `p` (`q[p[i]] = i`).
+fn inverse(p: &[Index]) -> Vec<Index> {
+    let mut q = vec![0; p.len()];
+    for (i, &j) in p.iter().enumerate() {
+        q[j as usize] = i as Index;
+    }
+    q
 }
 
 /// Old → new indices of `count` elements numbered by their first use in `uses` (the
