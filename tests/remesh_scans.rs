@@ -256,6 +256,7 @@ fn photogrammetry_atlas_without_zero_area_faces() {
     photogrammetry_atlas(
         "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz",
         0.005,
+        1500,
     );
 }
 
@@ -264,10 +265,10 @@ fn photogrammetry_atlas_without_zero_area_faces() {
 /// along their lines only.
 #[test]
 fn raw_photogrammetry_atlas_keeps_its_seams() {
-    photogrammetry_atlas("textured/esp32cam_meshroom_raw/texturedMesh.obj", 0.01);
+    photogrammetry_atlas("textured/esp32cam_meshroom_raw/texturedMesh.obj", 0.01, 400);
 }
 
-fn photogrammetry_atlas(rel: &str, fraction: f64) {
+fn photogrammetry_atlas(rel: &str, fraction: f64, one_turned_in: usize) {
     let (mesh, out, a) = remesh_at(rel, fraction);
     out.check_invariants().unwrap();
     assert_eq!(a.zero_area_faces, 0, "{a:?}");
@@ -279,6 +280,15 @@ fn photogrammetry_atlas(rel: &str, fraction: f64) {
     assert!(a.seam_vertices_off_seam <= 2, "{a:?}");
     let m = compare(&out, &mesh, &MetricsOptions::default()).unwrap();
     assert_eq!(m.topology.cracks, 0);
+    // The repair pass leaves faces turned where the input is crumpled; its flips, moves,
+    // collapses and splits bring them down to this share (esp32cam 48 → 35 of 15,623 and
+    // the coral 210 → 132 of 230,199 when the splits and more move targets came).
+    let turned = common::faces_against(&mesh, &out).len();
+    assert!(
+        turned * one_turned_in <= out.triangles.len(),
+        "{rel}: {turned} faces turned of {}",
+        out.triangles.len()
+    );
 }
 
 /// James at 0.5 % of the diagonal (72k faces): its seams stay where the input's are. Where

@@ -12,10 +12,13 @@
 //! changes disagree less with the input (each turned face counts 1, a degenerate one more
 //! than any number of turned ones, so no repair trades turned faces for one without area):
 //! flip one of its free edges; move one of its corners (a free vertex to the input's
-//! closest point to the centroid of its fan or to itself, or halfway to the first; a line
-//! vertex along its line towards the middle of its line neighbours); collapse one of its
-//! edges under the remesher's topological rules. A face's agreement depends on its own
-//! corners only, so each repair lowers the total and the pass ends. It goes round again, over the
+//! closest point to the centroid of its fan, to itself, or to a point 0.3 of the way to
+//! each neighbour, or halfway to the first; a line vertex along its line towards the middle
+//! of its line neighbours, or to one of seven points of the line between them); collapse
+//! one of its edges under the remesher's topological rules; split one of its edges at the
+//! input's closest point to the edge's middle, so that four smaller faces can follow a fold
+//! that the two larger ones lay across. A face's agreement depends on its own corners only,
+//! so each repair lowers the total and the pass ends. It goes round again, over the
 //! faces still turned and those around what changed, while a round repairs something: a
 //! face that could not be repaired may be once its neighbours have moved.
 //!
@@ -45,12 +48,28 @@ pub struct Repairs {
     pub flips: usize,
     pub moves: usize,
     pub collapses: usize,
+    pub splits: usize,
     /// Faces still turned after it.
     pub left: usize,
     /// Of those, the faces whose corners may not move (line ends, junctions and locked
     /// vertices).
     pub left_unmovable: usize,
 }
+
+impl Repairs {
+    /// Whether the pass changed the mesh.
+    pub fn changed(&self) -> bool {
+        self.flips + self.moves + self.collapses + self.splits > 0
+    }
+}
+
+/// A line vertex's move also tries its line's points nearest to 1/8, 2/8 … 7/8 of the way
+/// between its line neighbours (docs/remeshing.md, "the repair pass").
+const LINE_TARGETS: usize = 8;
+
+/// A free vertex's move tries the input's closest point to the point this far towards each
+/// of its neighbours (0.3: well inside the fan, so its faces keep their shape).
+const TOWARDS_NEIGHBOUR: f64 = 0.3;
 
 /// At most this many rounds (james: 16 faces turned, 2 left after the second round).
 const MAX_ROUNDS: usize = 8;
@@ -143,6 +162,8 @@ pub fn repair(
         hs: Vec::new(),
         moved: Vec::new(),
     };
+    // Faces still turned that no change has come near since they were last tried.
+    let mut waiting: Vec<usize> = Vec::new();
     for _ in 0..MAX_ROUNDS {
         pass.moved.clear();
         for &f in &turned {
@@ -155,22 +176,20 @@ pub fn repair(
                 r.moves += 1;
             } else if pass.try_collapses(c, f) {
                 r.collapses += 1;
+            } else if pass.try_splits(c, f) {
+                r.splits += 1;
             }
         }
         if pass.moved.is_empty() {
             break;
         }
-        // Only the faces around a changed vertex can have changed their agreement.
-        let mut candidates = turned;
-        for &v in &pass.moved {
-            if !c.vertex_dead[v as usize] {
-                c.fan(v, &mut pass.hs);
-                candidates.extend(pass.hs.iter().map(|&h| (h / 3) as usize));
-            }
-        }
-        candidates.sort_unstable();
-        candidates.dedup();
-        turned = candidates
+        // What a repair of face f tries depends on the corners of f and their neighbours
+        // only, and a try that fails changes nothing: so a face with no corner next to a
+        // change would fail again. The next round takes the faces turned among those near a
+        // change; the others wait, and are tried again once a change comes near them.
+        let near = faces_near(c, &pass.moved, &mut pass.hs);
+        waiting.extend(turned.iter().filter(|f| near.binary_search(f).is_err()));
+        turned = near
             .into_iter()
             .filter(|&f| !c.face_dead[f] && !pass.input.face_agrees(c, f))
             .collect();
@@ -178,6 +197,12 @@ pub fn repair(
             break;
         }
     }
+    // Waiting faces a later change came near were taken again (and are in `turned` if still
+    // turned); the rest are as they were.
+    turned.extend(waiting);
+    turned.sort_unstable();
+    turned.dedup();
+    turned.retain(|&f| !c.face_dead[f] && !pass.input.face_agrees(c, f));
     r.left = turned.len();
     r.left_unmovable = turned
         .iter()
@@ -186,9 +211,31 @@ pub fn repair(
     r
 }
 
+/// The live faces with a corner at or next to one of the live vertices `changed`, in index
+/// order.
+fn faces_near(c: &Corners, changed: &[u32], hs: &mut Vec<u32>) -> Vec<usize> {
+    let mut ring = Vec::new();
+    let mut near = Vec::new();
+    for &v in changed {
+        if c.vertex_dead[v as usize] {
+            continue;
+        }
+        c.ring(v, hs, &mut ring);
+        for &u in ring.iter().chain([&v]) {
+            c.fan(u, hs);
+            near.extend(hs.iter().map(|&h| (h / 3) as usize));
+        }
+    }
+    near.sort_unstable();
+    near.dedup();
+    near.retain(|&f| !c.face_dead[f]);
+    near
+}
+
 /// The pass on a mesh `patches` made from `input` (closed, without texture coordinates;
 /// `triangle_origins` index `input`). Only where the pass changed something is the mesh
-/// rebuilt: its faces keep their origins, a flipped pair those of its two old faces.
+/// rebuilt: its faces keep their origins, a flipped pair those of its two old faces, and a
+/// split's new faces take the input triangle closest to their centroid.
 pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
     let topo = Topology::new(&out);
     let lines = Lines::new(&out, &topo, None);
@@ -199,15 +246,27 @@ pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
     }
     let bvh = TriangleBvh::new(input, (0..input.triangles.len() as u32).collect());
     let r = repair(&mut c, &lines, &bvh, input, &mut Scratch::default());
-    if r.flips + r.moves + r.collapses == 0 {
+    if !r.changed() {
         return (out, r);
     }
     let live = Live::of(&c);
     let positions = live.vertices.iter().map(|&v| c.pos[v as usize]).collect();
+    // A face a split added has no origin in `out`: it takes the input triangle closest to
+    // its centroid, as the remesher's faces do.
+    let origin = |f: usize| {
+        if f < out.triangles.len() {
+            return out.triangle_origin(f);
+        }
+        let p = c.face_positions(f);
+        let centroid = (p[0] + p[1] + p[2]) / 3.0;
+        let hint = face_hint(&c, f);
+        bvh.closest(centroid, Some(bvh.hit_on(centroid, hint)))
+            .map_or(hint, |h| h.triangle)
+    };
     let triangles = live
         .faces
         .iter()
-        .map(|&f| (live.triangle(&c, f), out.triangle_origin(f)))
+        .map(|&f| (live.triangle(&c, f), origin(f)))
         .collect();
     (mesh_of(positions, triangles), r)
 }
@@ -282,8 +341,16 @@ impl Pass<'_> {
         let here = c.pos[v as usize];
         let before = self.disagreements(c, v, here, None);
         let lines = self.input.lines;
-        let (on_line, seg) = lines.project(0.5 * (c.pos[x as usize] + c.pos[y as usize]), seg);
-        for target in [on_line, lines.project(0.5 * (here + on_line), seg).0] {
+        let (px, py) = (c.pos[x as usize], c.pos[y as usize]);
+        let (on_line, seg) = lines.project(0.5 * (px + py), seg);
+        let halfway = lines.project(0.5 * (here + on_line), seg).0;
+        // Then points spread between the neighbours: where the input folds under the line,
+        // the one place that agrees may be well off the middle (james's border).
+        let spread = (1..LINE_TARGETS).map(|k| {
+            let t = k as f64 / LINE_TARGETS as f64;
+            lines.project(px.lerp(py, t), seg).0
+        });
+        for target in [on_line, halfway].into_iter().chain(spread) {
             if self.disagreements(c, v, target, None) < before {
                 c.pos[v as usize] = target;
                 c.vseg[v as usize] = seg;
@@ -299,7 +366,16 @@ impl Pass<'_> {
         let (centroid, _) = ops::fan_centroid(c, v, self.sc);
         let hint = c.vtri[v as usize];
         let bvh = self.input.bvh;
-        for (query, halfway) in [(centroid, false), (centroid, true), (here, false)] {
+        let mut queries = vec![(centroid, false), (centroid, true), (here, false)];
+        // Then towards each neighbour: across a fold the closest point of a point nearby can
+        // be on the sheet the faces around agree with.
+        let mut ring = Vec::new();
+        c.ring(v, &mut self.hs, &mut ring);
+        queries.extend(
+            ring.iter()
+                .map(|&u| (here.lerp(c.pos[u as usize], TOWARDS_NEIGHBOUR), false)),
+        );
+        for (query, halfway) in queries {
             let Some(hit) = bvh.closest(query, Some(bvh.hit_on(query, hint))) else {
                 continue;
             };
@@ -332,6 +408,55 @@ impl Pass<'_> {
                     self.moved.push(y);
                     return true;
                 }
+            }
+        }
+        false
+    }
+
+    /// Splits the first edge of face `f` whose four new faces disagree with the input less
+    /// than the two old ones, at the input's closest point to the edge's middle (a line
+    /// edge: at its line's point closest to the middle). Where the input folds, smaller
+    /// faces can follow what larger ones could only lie across.
+    fn try_splits(&mut self, c: &mut Corners, f: usize) -> bool {
+        for h in (3 * f as u32)..(3 * f as u32 + 3) {
+            let (a, b) = (c.vtx[h as usize], c.dest(h));
+            if c.locked[a as usize] || c.locked[b as usize] {
+                continue;
+            }
+            let mid = 0.5 * (c.pos[a as usize] + c.pos[b as usize]);
+            let hint = c.vtri[a as usize];
+            let (m, seg, vtri) = if c.is_constrained(h) {
+                let seg = c.seg[h as usize];
+                if seg == NIL {
+                    continue;
+                }
+                let (p, seg) = self.input.lines.project(mid, seg);
+                (p, seg, hint)
+            } else {
+                let bvh = self.input.bvh;
+                let Some(hit) = bvh.closest(mid, Some(bvh.hit_on(mid, hint))) else {
+                    continue;
+                };
+                (hit.point, NIL, hit.triangle)
+            };
+            let g = c.opp[h as usize];
+            let p = |v: u32| c.pos[v as usize];
+            let mut before = self.input.face_badness(c, f);
+            let z = c.vtx[prev(h) as usize];
+            let mut after = self.input.badness([p(a), m, p(z)], vtri)
+                + self.input.badness([m, p(b), p(z)], vtri);
+            if g != NIL {
+                let w = c.vtx[prev(g) as usize];
+                before += self.input.face_badness(c, (g / 3) as usize);
+                after += self.input.badness([p(b), m, p(w)], vtri)
+                    + self.input.badness([m, p(a), p(w)], vtri);
+            }
+            if after < before {
+                let w = (g != NIL).then(|| c.vtx[prev(g) as usize]);
+                let v = ops::split(c, h, m, seg);
+                c.vtri[v as usize] = vtri;
+                self.moved.extend([a, b, z, v].into_iter().chain(w));
+                return true;
             }
         }
         false
