@@ -281,8 +281,8 @@ fn photogrammetry_atlas(rel: &str, fraction: f64, one_turned_in: usize) {
     let m = compare(&out, &mesh, &MetricsOptions::default()).unwrap();
     assert_eq!(m.topology.cracks, 0);
     // The repair pass leaves faces turned where the input is crumpled; its flips, moves,
-    // collapses and splits bring them down to this share (esp32cam 48 → 35 of 15,623 and
-    // the coral 210 → 132 of 230,199 when the splits and more move targets came).
+    // collapses and splits bring them down to this share (esp32cam 48 → 36 of 15,621 and
+    // the coral 210 → 133 of 230,161 when the splits and the far moves came).
     let turned = common::faces_against(&mesh, &out).len();
     assert!(
         turned * one_turned_in <= out.triangles.len(),

@@ -11,13 +11,15 @@
 //! Each turned face, in index order, gets the first of these after which the faces it
 //! changes disagree less with the input (each turned face counts 1, a degenerate one more
 //! than any number of turned ones, so no repair trades turned faces for one without area):
-//! flip one of its free edges; move one of its corners (a free vertex to the input's
-//! closest point to the centroid of its fan, to itself, or to a point 0.3 of the way to
-//! each neighbour, or halfway to the first; a line vertex along its line towards the middle
-//! of its line neighbours, or to one of seven points of the line between them); collapse
-//! one of its edges under the remesher's topological rules; split one of its edges at the
-//! input's closest point to the edge's middle, so that four smaller faces can follow a fold
-//! that the two larger ones lay across. A face's agreement depends on its own corners only,
+//! flip one of its free edges; move one of its corners nearby (a free vertex to the input's
+//! closest point to the centroid of its fan or to itself, or halfway to the first; a line
+//! vertex along its line towards the middle of its line neighbours, or halfway); collapse
+//! one of its edges under the remesher's topological rules; move a corner farther (a free
+//! vertex to the input's closest point to a point 0.3 of the way to each neighbour, a line
+//! vertex to one of seven points of its line between its line neighbours), which bends the
+//! faces more than a collapse; split one of its edges at the input's closest point to the
+//! edge's middle, so that four smaller faces can follow a fold that the two larger ones lay
+//! across. A face's agreement depends on its own corners only,
 //! so each repair lowers the total and the pass ends. It goes round again, over the
 //! faces still turned and those around what changed, while a round repairs something: a
 //! face that could not be repaired may be once its neighbours have moved.
@@ -61,6 +63,13 @@ impl Repairs {
     pub fn changed(&self) -> bool {
         self.flips + self.moves + self.collapses + self.splits > 0
     }
+}
+
+/// How far a repair's move may take a vertex (see [`Pass::try_moves`]).
+#[derive(Clone, Copy)]
+enum Reach {
+    Near,
+    Far,
 }
 
 /// A line vertex's move also tries its line's points nearest to 1/8, 2/8 … 7/8 of the way
@@ -170,12 +179,16 @@ pub fn repair(
             if c.face_dead[f] || pass.input.face_agrees(c, f) {
                 continue;
             }
+            // The near moves and the collapses first: they keep the faces' shapes best;
+            // the far moves and the splits only where those fail.
             if pass.try_flips(c, f) {
                 r.flips += 1;
-            } else if pass.try_moves(c, f) {
+            } else if pass.try_moves(c, f, Reach::Near) {
                 r.moves += 1;
             } else if pass.try_collapses(c, f) {
                 r.collapses += 1;
+            } else if pass.try_moves(c, f, Reach::Far) {
+                r.moves += 1;
             } else if pass.try_splits(c, f) {
                 r.splits += 1;
             }
@@ -311,16 +324,19 @@ impl Pass<'_> {
     }
 
     /// Moves the first vertex of face `f` that can go somewhere where fewer faces around it
-    /// disagree with the input: a free vertex to the input's closest point to the centroid
-    /// of its fan or to itself, or halfway to the first; a line vertex to the point of its
-    /// line closest to the middle of its two line neighbours, or halfway there.
-    fn try_moves(&mut self, c: &mut Corners, f: usize) -> bool {
+    /// disagree with the input. Near: a free vertex to the input's closest point to the
+    /// centroid of its fan or to itself, or halfway to the first; a line vertex to the point
+    /// of its line closest to the middle of its two line neighbours, or halfway there. Far:
+    /// a free vertex to the input's closest point to a point [`TOWARDS_NEIGHBOUR`] of the
+    /// way to each neighbour; a line vertex to its line's points at 1/8 … 7/8 of the way
+    /// between its line neighbours.
+    fn try_moves(&mut self, c: &mut Corners, f: usize, reach: Reach) -> bool {
         (0..3).any(|i| {
             let v = c.vtx[3 * f + i];
             let done = match c.kind[v as usize] {
                 _ if c.locked[v as usize] => false,
-                VKind::Free => self.try_free_move(c, v),
-                VKind::Line => self.try_line_move(c, v),
+                VKind::Free => self.try_free_move(c, v, reach),
+                VKind::Line => self.try_line_move(c, v, reach),
                 VKind::Corner => false,
             };
             if done {
@@ -330,7 +346,7 @@ impl Pass<'_> {
         })
     }
 
-    fn try_line_move(&mut self, c: &mut Corners, v: u32) -> bool {
+    fn try_line_move(&mut self, c: &mut Corners, v: u32, reach: Reach) -> bool {
         let seg = c.vseg[v as usize];
         let Some([x, y]) = ops::line_neighbours(c, v, self.sc) else {
             return false;
@@ -343,14 +359,18 @@ impl Pass<'_> {
         let lines = self.input.lines;
         let (px, py) = (c.pos[x as usize], c.pos[y as usize]);
         let (on_line, seg) = lines.project(0.5 * (px + py), seg);
-        let halfway = lines.project(0.5 * (here + on_line), seg).0;
-        // Then points spread between the neighbours: where the input folds under the line,
-        // the one place that agrees may be well off the middle (james's border).
-        let spread = (1..LINE_TARGETS).map(|k| {
-            let t = k as f64 / LINE_TARGETS as f64;
-            lines.project(px.lerp(py, t), seg).0
-        });
-        for target in [on_line, halfway].into_iter().chain(spread) {
+        let targets: Vec<(DVec3, u32)> = match reach {
+            Reach::Near => {
+                let halfway = lines.project(0.5 * (here + on_line), seg);
+                vec![(on_line, seg), halfway]
+            }
+            // Where the input folds under the line, the one place that agrees may be well
+            // off the middle (james's border).
+            Reach::Far => (1..LINE_TARGETS)
+                .map(|k| lines.project(px.lerp(py, k as f64 / LINE_TARGETS as f64), seg))
+                .collect(),
+        };
+        for (target, seg) in targets {
             if self.disagreements(c, v, target, None) < before {
                 c.pos[v as usize] = target;
                 c.vseg[v as usize] = seg;
@@ -360,21 +380,24 @@ impl Pass<'_> {
         false
     }
 
-    fn try_free_move(&mut self, c: &mut Corners, v: u32) -> bool {
+    fn try_free_move(&mut self, c: &mut Corners, v: u32, reach: Reach) -> bool {
         let here = c.pos[v as usize];
         let before = self.disagreements(c, v, here, None);
         let (centroid, _) = ops::fan_centroid(c, v, self.sc);
         let hint = c.vtri[v as usize];
         let bvh = self.input.bvh;
-        let mut queries = vec![(centroid, false), (centroid, true), (here, false)];
-        // Then towards each neighbour: across a fold the closest point of a point nearby can
-        // be on the sheet the faces around agree with.
-        let mut ring = Vec::new();
-        c.ring(v, &mut self.hs, &mut ring);
-        queries.extend(
-            ring.iter()
-                .map(|&u| (here.lerp(c.pos[u as usize], TOWARDS_NEIGHBOUR), false)),
-        );
+        let queries = match reach {
+            Reach::Near => vec![(centroid, false), (centroid, true), (here, false)],
+            // Across a fold the closest point of a point nearby can be on the sheet the
+            // faces around agree with.
+            Reach::Far => {
+                let mut ring = Vec::new();
+                c.ring(v, &mut self.hs, &mut ring);
+                ring.iter()
+                    .map(|&u| (here.lerp(c.pos[u as usize], TOWARDS_NEIGHBOUR), false))
+                    .collect()
+            }
+        };
         for (query, halfway) in queries {
             let Some(hit) = bvh.closest(query, Some(bvh.hit_on(query, hint))) else {
                 continue;
