@@ -86,12 +86,16 @@ const MAX_ROUNDS: usize = 8;
 /// The input's orientation under the face with corners `p`: the normal (not normalised) of
 /// the input triangle closest to its centroid, searched from `hint`.
 fn input_normal(bvh: &TriangleBvh, input: &Mesh, p: [DVec3; 3], hint: u32) -> DVec3 {
+    input.triangle_cross(input_under(bvh, p, hint) as usize)
+}
+
+/// The input triangle closest to the centroid of the face with corners `p`, searched from
+/// `hint`.
+fn input_under(bvh: &TriangleBvh, p: [DVec3; 3], hint: u32) -> u32 {
     let centroid = (p[0] + p[1] + p[2]) / 3.0;
     let start = bvh.hit_on(centroid, hint);
-    let t = bvh
-        .closest(centroid, Some(start))
-        .map_or(hint, |h| h.triangle);
-    input.triangle_cross(t as usize)
+    bvh.closest(centroid, Some(start))
+        .map_or(hint, |h| h.triangle)
 }
 
 struct Input<'a> {
@@ -270,11 +274,7 @@ pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
         if f < out.triangles.len() {
             return out.triangle_origin(f);
         }
-        let p = c.face_positions(f);
-        let centroid = (p[0] + p[1] + p[2]) / 3.0;
-        let hint = face_hint(&c, f);
-        bvh.closest(centroid, Some(bvh.hit_on(centroid, hint)))
-            .map_or(hint, |h| h.triangle)
+        input_under(&bvh, c.face_positions(f), face_hint(&c, f))
     };
     let triangles = live
         .faces
@@ -383,11 +383,13 @@ impl Pass<'_> {
     fn try_free_move(&mut self, c: &mut Corners, v: u32, reach: Reach) -> bool {
         let here = c.pos[v as usize];
         let before = self.disagreements(c, v, here, None);
-        let (centroid, _) = ops::fan_centroid(c, v, self.sc);
         let hint = c.vtri[v as usize];
         let bvh = self.input.bvh;
         let queries = match reach {
-            Reach::Near => vec![(centroid, false), (centroid, true), (here, false)],
+            Reach::Near => {
+                let (centroid, _) = ops::fan_centroid(c, v, self.sc);
+                vec![(centroid, false), (centroid, true), (here, false)]
+            }
             // Across a fold the closest point of a point nearby can be on the sheet the
             // faces around agree with.
             Reach::Far => {
@@ -468,14 +470,13 @@ impl Pass<'_> {
             let z = c.vtx[prev(h) as usize];
             let mut after = self.input.badness([p(a), m, p(z)], vtri)
                 + self.input.badness([m, p(b), p(z)], vtri);
-            if g != NIL {
-                let w = c.vtx[prev(g) as usize];
+            let w = (g != NIL).then(|| c.vtx[prev(g) as usize]);
+            if let Some(w) = w {
                 before += self.input.face_badness(c, (g / 3) as usize);
                 after += self.input.badness([p(b), m, p(w)], vtri)
                     + self.input.badness([m, p(a), p(w)], vtri);
             }
             if after < before {
-                let w = (g != NIL).then(|| c.vtx[prev(g) as usize]);
                 let v = ops::split(c, h, m, seg);
                 c.vtri[v as usize] = vtri;
                 self.moved.extend([a, b, z, v].into_iter().chain(w));
