@@ -128,7 +128,14 @@ pub struct TriangleBvh<'a> {
     budget: u32,
     /// Searches that stopped at the budget.
     cut_short: AtomicU64,
+    /// Distances within this of each other are equal ([`TriangleBvh::facing`]).
+    tie: f64,
 }
+
+/// Two distances to the surface closer than this fraction of the indexed surface's
+/// bounding-box diagonal are the same distance: the closest point on an edge shared by two
+/// triangles, computed from each, differs by rounding only (around 1e-16 of the diagonal).
+pub const TIE_FRACTION: f64 = 1e-9;
 
 /// The largest `f32` not above `x`, and the smallest not below it.
 fn f32_down(x: f64) -> f32 {
@@ -165,6 +172,10 @@ impl<'a> TriangleBvh<'a> {
             .collect();
         fit_boxes(mesh, &mut nodes, &corners);
         let levels = depth(order.len()) + 1;
+        let root = nodes[0];
+        let diagonal = (DVec3::from_array(root.max.map(f64::from))
+            - DVec3::from_array(root.min.map(f64::from)))
+        .length();
         TriangleBvh {
             mesh,
             nodes,
@@ -172,6 +183,7 @@ impl<'a> TriangleBvh<'a> {
             corners,
             budget: BUDGET_PER_LEVEL * levels,
             cut_short: AtomicU64::new(0),
+            tie: TIE_FRACTION * diagonal,
         }
     }
 
@@ -394,6 +406,67 @@ impl<'a> TriangleBvh<'a> {
             bary,
             distance_squared: point.distance_squared(p),
         }
+    }
+
+    /// Of the indexed triangles as near to `p` as `hit` (its closest point), the one whose
+    /// normal is nearest to `normal` (by the angle between them).
+    ///
+    /// Where the closest point lies on an edge or a corner of `hit`'s triangle, the
+    /// triangles around that edge or corner are all as near, and at a crease or a fold they
+    /// face different ways: which one a search answers depends on its traversal, so a test
+    /// of a face's orientation against "the surface's normal at its closest point" must
+    /// look at all of them (the normal of a surface at a crease is not one direction but
+    /// the range of its faces' normals). Inside a triangle the answer is `hit`'s own
+    /// triangle, without a search. Zero-area triangles have no normal and are not chosen
+    /// over one that has. The search visits at most [`TriangleBvh::budget`] nodes; past it
+    /// the best so far is the answer (overlapping triangles only).
+    pub fn facing(&self, p: DVec3, hit: &TriangleHit, normal: DVec3) -> u32 {
+        if hit.bary.min_element() > 0.0 {
+            return hit.triangle;
+        }
+        let reach = hit.distance_squared.sqrt() + self.tie;
+        let (lo, hi) = (p - DVec3::splat(reach), p + DVec3::splat(reach));
+        let score = |t: u32| {
+            self.mesh
+                .triangle_cross(t as usize)
+                .normalize_or_zero()
+                .dot(normal)
+        };
+        let mut best = (score(hit.triangle), hit.triangle);
+        let mut stack = [0u32; MAX_DEPTH];
+        let mut top = 1;
+        let mut visited = 0;
+        while top > 0 && visited < self.budget {
+            top -= 1;
+            visited += 1;
+            let n = &self.nodes[stack[top] as usize];
+            let (min, max) = (
+                DVec3::from_array(n.min.map(f64::from)),
+                DVec3::from_array(n.max.map(f64::from)),
+            );
+            if !(min.cmple(hi).all() && max.cmpge(lo).all()) {
+                continue;
+            }
+            if n.count == 0 {
+                stack[top] = n.first;
+                stack[top + 1] = n.first + 1;
+                top += 2;
+                continue;
+            }
+            let first = n.first as usize;
+            for i in first..first + n.count as usize {
+                let near = self.leaf_hit(i, p);
+                if near.triangle == hit.triangle || near.distance_squared.sqrt() > reach {
+                    continue;
+                }
+                let s = score(near.triangle);
+                // The lower index on equal scores: the answer does not depend on the tree.
+                if s > best.0 || (s == best.0 && near.triangle < best.1) {
+                    best = (s, near.triangle);
+                }
+            }
+        }
+        best.1
     }
 
     /// The closest point of triangle `t` of the mesh (indexed or not) to `p`.
@@ -657,6 +730,41 @@ mod tests {
         // Degenerate triangles still give a point on them.
         let (got, _) = closest_on_triangle(DVec3::new(0.5, 1.0, 0.0), a, b, b);
         assert!((got - DVec3::new(0.5, 0.0, 0.0)).length() < 1e-15);
+    }
+
+    /// A page folded back over itself along x = 0: a point beside the fold is as near to
+    /// both triangles (on their shared edge), and `facing` answers the one that faces the
+    /// given way, whichever the search found; a point above the inside of one triangle has
+    /// that triangle as its only answer.
+    #[test]
+    fn facing_at_a_fold() {
+        let mesh = Mesh {
+            positions: vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(0.8, 0.5, 0.3)],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            wedges: (0..4)
+                .map(|vertex| crate::mesh::Wedge {
+                    vertex,
+                    texcoord: None,
+                    normal: None,
+                })
+                .collect(),
+            ..Mesh::default()
+        };
+        let (up, folded) = (mesh.triangle_cross(0), mesh.triangle_cross(1));
+        assert!(up.dot(folded) < 0.0, "the second triangle is folded back");
+        let bvh = TriangleBvh::new(&mesh, vec![0, 1]);
+        let beside = DVec3::new(-0.5, 0.5, 0.0);
+        let hit = bvh.closest(beside, None).unwrap();
+        assert!((hit.point - DVec3::new(0.0, 0.5, 0.0)).length() < 1e-12);
+        for start in [0, 1] {
+            let hit = bvh.hit_on(beside, start);
+            assert_eq!(bvh.facing(beside, &hit, up.normalize()), 0);
+            assert_eq!(bvh.facing(beside, &hit, folded.normalize()), 1);
+        }
+        let above = DVec3::new(0.5, 0.1, 0.01);
+        let hit = bvh.closest(above, None).unwrap();
+        assert_eq!(hit.triangle, 0);
+        assert_eq!(bvh.facing(above, &hit, folded.normalize()), 0);
     }
 
     #[test]

@@ -5,7 +5,11 @@
 //! - Same connectivity (smoothing, fairing, normals): the angle between face f of the
 //!   result and face f of the reference.
 //! - Otherwise (crop, decimation): the angle between each result face's normal and the
-//!   normal of the reference triangle closest to the face's centroid. A result face whose
+//!   normal of the reference triangle closest to the face's centroid. Where that closest
+//!   point lies on an edge or a corner shared by several triangles (a crease, a fold), the
+//!   reference's normal there is any of theirs, and the face is measured against the one
+//!   nearest its own ([`SurfaceIndex::facing`]): which of them a search happens to answer
+//!   must not decide whether a face counts as flipped. A result face whose
 //!   corners are exactly those of its counterpart (the reference triangle from the same
 //!   input triangle, via `triangle_origins`: e.g. a face a crop kept) is that triangle: no
 //!   query needed.
@@ -108,12 +112,11 @@ pub fn angular_deviation_with(
                 _ => {
                     let [a, b, c] = result.triangle_positions(t);
                     let centroid = (a + b + c) / 3.0;
-                    match near {
+                    let closest = match near {
                         Some(near) => reference_index.closest_near(centroid, near as usize),
                         None => reference_index.closest(centroid),
-                    }
-                    .on
-                    .triangle as usize
+                    };
+                    reference_index.facing(centroid, &closest, n)
                 }
             };
             Some(angle(n, unit_normal(reference, reference_face)?))

@@ -2,7 +2,7 @@
 //! closest-point queries on the other surface through a BVH (`crate::geom::bvh::TriangleBvh`).
 
 use super::MetricsError;
-use crate::geom::bvh::{Search, TriangleBvh};
+use crate::geom::bvh::{Search, TriangleBvh, TriangleHit};
 use crate::mesh::Mesh;
 use glam::DVec3;
 use rand::{RngExt, SeedableRng};
@@ -128,6 +128,19 @@ impl<'a> SurfaceIndex<'a> {
     /// The exact closest point of the surface to `p`.
     pub fn closest(&self, p: DVec3) -> Closest {
         self.to_closest(p, self.bvh.search(p, None))
+    }
+
+    /// Of the triangles as near to `p` as `closest` (which must be `p`'s closest point),
+    /// the one whose normal is nearest to `normal`: at a crease or a fold, where the
+    /// closest point lies on an edge or a corner, several are ([`TriangleBvh::facing`]).
+    pub fn facing(&self, p: DVec3, closest: &Closest, normal: DVec3) -> usize {
+        let hit = TriangleHit {
+            triangle: closest.on.triangle,
+            point: closest.on.point,
+            bary: closest.on.bary,
+            distance_squared: closest.distance * closest.distance,
+        };
+        self.bvh.facing(p, &hit, normal) as usize
     }
 
     /// The exact closest point of the surface to `p`, knowing that triangle `near` of the

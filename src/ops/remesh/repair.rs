@@ -5,8 +5,8 @@
 //! that are each under 90°, and where the input is crumpled (a ragged scan border folded
 //! over itself) the projection can lay a face across a fold. The decimation promises no
 //! face against the input; so does this pass, with the input's orientation read the way
-//! the metrics and the output's triangle origins read it: the input triangle closest to
-//! the face's centroid.
+//! the metrics read it: the input triangle closest to the face's centroid, or, where that
+//! point is on a crease or fold shared by several triangles as near, any of them.
 //!
 //! Each turned face, in index order, gets the first of these after which the faces it
 //! changes disagree less with the input (each turned face counts 1, a degenerate one more
@@ -35,7 +35,7 @@ use super::export::Live;
 use super::lines::Lines;
 use super::ops::{self, Scratch};
 use super::patches::tessellate::mesh_of;
-use crate::geom::bvh::TriangleBvh;
+use crate::geom::bvh::{TriangleBvh, TriangleHit};
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
 use glam::DVec3;
@@ -83,19 +83,21 @@ const TOWARDS_NEIGHBOUR: f64 = 0.3;
 /// At most this many rounds (james: 16 faces turned, 2 left after the second round).
 const MAX_ROUNDS: usize = 8;
 
-/// The input's orientation under the face with corners `p`: the normal (not normalised) of
-/// the input triangle closest to its centroid, searched from `hint`.
-fn input_normal(bvh: &TriangleBvh, input: &Mesh, p: [DVec3; 3], hint: u32) -> DVec3 {
-    input.triangle_cross(input_under(bvh, p, hint) as usize)
+/// The closest point of the input to the centroid of the face with corners `p`, searched
+/// from input triangle `hint`.
+fn input_hit(bvh: &TriangleBvh, p: [DVec3; 3], hint: u32) -> (DVec3, TriangleHit) {
+    let centroid = (p[0] + p[1] + p[2]) / 3.0;
+    let start = bvh.hit_on(centroid, hint);
+    (
+        centroid,
+        bvh.closest(centroid, Some(start)).unwrap_or(start),
+    )
 }
 
 /// The input triangle closest to the centroid of the face with corners `p`, searched from
 /// `hint`.
 fn input_under(bvh: &TriangleBvh, p: [DVec3; 3], hint: u32) -> u32 {
-    let centroid = (p[0] + p[1] + p[2]) / 3.0;
-    let start = bvh.hit_on(centroid, hint);
-    bvh.closest(centroid, Some(start))
-        .map_or(hint, |h| h.triangle)
+    input_hit(bvh, p, hint).1.triangle
 }
 
 struct Input<'a> {
@@ -105,16 +107,22 @@ struct Input<'a> {
 }
 
 impl Input<'_> {
-    /// A face with corners `p` faces the input's way (an input triangle of zero area has no
-    /// way: it does not object) and is not degenerate.
+    /// A face with corners `p` is not degenerate and faces the input's way under its
+    /// centroid: the way of the input triangle closest to it, or, where that closest point
+    /// is on an edge or corner shared with other triangles as near (a crease, a fold), of
+    /// any of them ([`TriangleBvh::facing`]; the metrics read flipped faces the same way).
+    /// An input triangle of zero area has no way: it does not object.
     fn agrees(&self, p: [DVec3; 3], hint: u32) -> bool {
-        let n = input_normal(self.bvh, self.mesh, p, hint);
-        let n = if n == DVec3::ZERO {
-            (p[1] - p[0]).cross(p[2] - p[0])
-        } else {
-            n
+        if ops::degenerate(p) {
+            return false;
+        }
+        let n = (p[1] - p[0]).cross(p[2] - p[0]);
+        let facing = |t: u32| {
+            let m = self.mesh.triangle_cross(t as usize);
+            m == DVec3::ZERO || n.dot(m) > 0.0
         };
-        ops::face_ok(p, n)
+        let (centroid, hit) = input_hit(self.bvh, p, hint);
+        facing(hit.triangle) || facing(self.bvh.facing(centroid, &hit, n.normalize()))
     }
 
     fn face_agrees(&self, c: &Corners, f: usize) -> bool {
