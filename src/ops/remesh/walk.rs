@@ -53,11 +53,13 @@ pub fn walk(
     };
     let (mut best, mut foot, mut w) = on(start);
     let mut t = start;
+    // The triangle the walk came from: farther than `t`'s point, so never the next step.
+    let mut from = NIL;
     for _ in 0..MAX_STEPS {
         // The closest candidate so far: distance², triangle, point, weights.
         let mut next = (best, NIL, foot, w);
         let consider = |u: u32, next: &mut (f64, u32, DVec3, DVec3)| {
-            if u != t && within(u) {
+            if u != t && u != from && within(u) {
                 let (d, p, wu) = on(u);
                 if d < next.0 {
                     *next = (d, u, p, wu);
@@ -84,6 +86,7 @@ pub fn walk(
                 settled: true,
             };
         }
+        from = t;
         (best, t, foot, w) = next;
     }
     Foot {
