@@ -15,19 +15,18 @@ pub struct AngleQuality {
     pub min_angle: f64,
 }
 
-/// The smallest angle of a triangle in degrees (0 for a degenerate one).
+/// The smallest angle of a triangle in degrees (0 for a degenerate one): the angle opposite
+/// its shortest edge (the law of sines), so one arc cosine rather than three.
 pub fn min_angle(p: [glam::DVec3; 3]) -> f64 {
-    (0..3)
-        .map(|k| {
-            let (a, b, c) = (p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
-            let (u, v) = (b - a, c - a);
-            if u.length_squared() == 0.0 || v.length_squared() == 0.0 {
-                0.0
-            } else {
-                u.angle_between(v).to_degrees()
-            }
-        })
-        .fold(f64::INFINITY, f64::min)
+    let opposite = |k: usize| p[(k + 1) % 3].distance_squared(p[(k + 2) % 3]);
+    let k = (1..3).fold(0, |k, j| if opposite(j) < opposite(k) { j } else { k });
+    let (a, b, c) = (p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
+    let (u, v) = (b - a, c - a);
+    if u.length_squared() == 0.0 || v.length_squared() == 0.0 {
+        0.0
+    } else {
+        u.angle_between(v).to_degrees()
+    }
 }
 
 pub fn min_angles(mesh: &Mesh) -> Vec<f64> {
@@ -49,5 +48,42 @@ impl AngleQuality {
             min_angle_p1: percentile(&angles, 0.01),
             min_angle: angles.iter().copied().fold(f64::INFINITY, f64::min),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metrics::surface::rng;
+    use glam::DVec3;
+    use rand::RngExt;
+
+    #[test]
+    fn smallest_angle_is_the_least_of_the_three() {
+        let all_three = |p: [DVec3; 3]| {
+            (0..3)
+                .map(|k| {
+                    let (a, b, c) = (p[k], p[(k + 1) % 3], p[(k + 2) % 3]);
+                    (b - a).angle_between(c - a).to_degrees()
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let mut r = rng(3);
+        for _ in 0..10_000 {
+            let p = [(); 3].map(|_| {
+                DVec3::new(
+                    r.random_range(-1.0..1.0),
+                    r.random_range(-1.0..1.0),
+                    r.random_range(-1.0..1.0),
+                )
+            });
+            assert!((min_angle(p) - all_three(p)).abs() < 1e-9, "{p:?}");
+        }
+        let (o, x, y) = (DVec3::ZERO, DVec3::X, DVec3::Y);
+        assert!((min_angle([o, x, y]) - 45.0).abs() < 1e-12);
+        let h = DVec3::new(0.5, 3f64.sqrt() / 2.0, 0.0);
+        assert!((min_angle([o, x, h]) - 60.0).abs() < 1e-9);
+        assert_eq!(min_angle([o, o, x]), 0.0);
+        assert_eq!(min_angle([x, x, x]), 0.0);
     }
 }
