@@ -30,7 +30,7 @@
 //! where the surface is cut or creased, and a vertex moved off it would open a gap between
 //! texture charts.
 
-use super::corners::{Corners, VKind};
+use super::corners::{Corners, NIL, VKind};
 use super::ops::{Scratch, fan_keeps_orientation};
 use super::walk;
 use crate::mesh::Mesh;
@@ -60,8 +60,11 @@ const ANCHOR: f64 = 0.5;
 const OUTLIER: f64 = 0.25;
 
 /// Fits the free vertices of `c`, projected onto `input` (whose topology is `topo`).
-pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> FitReport {
-    let feet = feet(c, input, topo);
+/// Returns, beside the report, the input triangle each face's centroid was found closest
+/// to before the fit ([`NIL`] for a dead face): the vertices moved by a small fraction of
+/// an edge since, so it is a close start for a later search from the same centroid.
+pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> (FitReport, Vec<u32>) {
+    let (feet, under): (Vec<Option<DVec3>>, Vec<u32>) = feet(c, input, topo).into_iter().unzip();
     let fitted: Vec<u32> = (0..c.pos.len() as u32)
         .filter(|&v| {
             let i = v as usize;
@@ -86,21 +89,22 @@ pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> FitReport {
         .iter()
         .zip(&anchors)
         .map(|(&v, a)| c.pos[v as usize].distance(*a));
-    FitReport {
+    let report = FitReport {
         vertices: offsets.clone().filter(|&d| d > 0.0).count(),
         mean_offset: offsets.clone().sum::<f64>() / fitted.len().max(1) as f64,
         max_offset: offsets.fold(0.0, f64::max),
-    }
+    };
+    (report, under)
 }
 
 /// The closest input point of every live face's centroid (`None` for a dead face or a
-/// centroid left out).
-fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<Option<DVec3>> {
+/// centroid left out), and the input triangle it is on ([`NIL`] for a dead face).
+fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<(Option<DVec3>, u32)> {
     (0..c.face_count())
         .into_par_iter()
         .map(|f| {
             if c.face_dead[f] {
-                return None;
+                return (None, NIL);
             }
             let p = c.face_positions(f);
             let longest = (0..3)
@@ -109,8 +113,9 @@ fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<Option<DVec3>> {
             let s = (p[0] + p[1] + p[2]) / 3.0;
             // Every vertex has the input triangle it was last projected onto (or, for an
             // input vertex never moved, one of its own).
-            let foot = walk::closest(input, topo, c.vtri[c.vtx[3 * f] as usize], s);
-            (foot.distance(s) <= OUTLIER * longest).then_some(foot)
+            let foot = walk::walk(input, topo, c.vtri[c.vtx[3 * f] as usize], s, |_| true);
+            let kept = foot.point.distance(s) <= OUTLIER * longest;
+            (kept.then_some(foot.point), foot.triangle)
         })
         .collect()
 }

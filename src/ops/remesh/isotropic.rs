@@ -519,10 +519,12 @@ pub fn run(
         sizing.follow(c, lines, mesh);
         counts.angle_flips += flip_angles(c, &mut sc);
     }
-    if fit {
-        counts.fit = fit::fit(c, mesh, topo);
-    }
-    counts.turned = repair::repair(c, lines, bvh, mesh, &mut sc);
+    let under = fit.then(|| {
+        let (report, under) = fit::fit(c, mesh, topo);
+        counts.fit = report;
+        under
+    });
+    counts.turned = repair::repair(c, lines, bvh, mesh, &mut sc, under.as_deref());
     counts
 }
 

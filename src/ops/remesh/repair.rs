@@ -155,24 +155,35 @@ fn face_hint(c: &Corners, f: usize) -> u32 {
 /// looks wrong). More than the faces any fan has.
 const DEGENERATE_WEIGHT: usize = 1 << 16;
 
-/// The live faces turned against the input, in index order.
-fn turned_faces(c: &Corners, input: &Input) -> Vec<usize> {
+/// The live faces turned against the input, in index order. `under`, when given, has an
+/// input triangle near each face's centroid to start its search from (any triangle gives
+/// the same answer; a near one prunes the tree sooner).
+fn turned_faces(c: &Corners, input: &Input, under: Option<&[u32]>) -> Vec<usize> {
     (0..c.face_count())
         .into_par_iter()
-        .filter(|&f| !c.face_dead[f] && !input.face_agrees(c, f))
+        .filter(|&f| {
+            let hint = match under.and_then(|u| u.get(f)) {
+                Some(&t) if t != NIL => t,
+                _ => face_hint(c, f),
+            };
+            !c.face_dead[f] && !input.agrees(c.face_positions(f), hint)
+        })
         .collect()
 }
 
-/// Runs the pass (see the module's documentation).
+/// Runs the pass (see the module's documentation). `under`, when given, is an input
+/// triangle near each face's centroid (the fit's, [`super::fit::fit`]), where the first
+/// search for the face's closest input triangle starts.
 pub fn repair(
     c: &mut Corners,
     lines: &Lines,
     bvh: &TriangleBvh,
     mesh: &Mesh,
     sc: &mut Scratch,
+    under: Option<&[u32]>,
 ) -> Repairs {
     let input = Input { bvh, mesh, lines };
-    let mut turned = turned_faces(c, &input);
+    let mut turned = turned_faces(c, &input, under);
     let mut r = Repairs {
         turned: turned.len(),
         ..Repairs::default()
@@ -270,7 +281,7 @@ pub fn repair_mesh(input: &Mesh, out: Mesh) -> (Mesh, Repairs) {
         *t = out.triangle_origin(*t as usize);
     }
     let bvh = TriangleBvh::new(input, (0..input.triangles.len() as u32).collect());
-    let r = repair(&mut c, &lines, &bvh, input, &mut Scratch::default());
+    let r = repair(&mut c, &lines, &bvh, input, &mut Scratch::default(), None);
     if !r.changed() {
         return (out, r);
     }

@@ -427,7 +427,7 @@ fn adaptive_keys_stay_out_of_the_resolved_recipe_when_absent() {
 
 fn repaired(c: &mut Corners, lines: &Lines, mesh: &Mesh) -> repair::Repairs {
     let bvh = crate::geom::bvh::TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
-    repair::repair(c, lines, &bvh, mesh, &mut ops::Scratch::default())
+    repair::repair(c, lines, &bvh, mesh, &mut ops::Scratch::default(), None)
 }
 
 #[test]
