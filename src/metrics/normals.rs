@@ -155,6 +155,49 @@ mod tests {
         );
     }
 
+    fn soup(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Mesh {
+        Mesh {
+            wedges: (0..positions.len() as u32)
+                .map(|vertex| crate::mesh::Wedge {
+                    vertex,
+                    texcoord: None,
+                    normal: None,
+                })
+                .collect(),
+            positions,
+            triangles,
+            ..Mesh::default()
+        }
+    }
+
+    /// A page folded back over itself along x = 0, and a result face beside the fold whose
+    /// centroid is as near to both of its triangles: the face is measured against the one
+    /// it faces with, whichever way it faces, so it is not flipped either way (a search
+    /// alone answers the same triangle for both faces, and one of them would count).
+    #[test]
+    fn at_a_fold_the_nearest_normal_counts() {
+        let reference = soup(
+            vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(0.8, 0.5, 0.3)],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let centre = DVec3::new(-0.5, 0.5, 0.0);
+        for t in 0..2 {
+            let n = reference.triangle_cross(t).normalize();
+            let e1 = n.any_orthonormal_vector();
+            let e2 = n.cross(e1);
+            let corners: Vec<DVec3> = [0.0f64, 120.0, 240.0]
+                .iter()
+                .map(|a| centre + 0.1 * (e1 * a.to_radians().cos() + e2 * a.to_radians().sin()))
+                .collect();
+            let result = soup(corners, vec![[0, 1, 2]]);
+            assert!(result.triangle_cross(0).dot(n) > 0.0);
+            let a = angular_deviation(&result, &reference).unwrap();
+            assert_eq!(a.correspondence, Correspondence::ClosestPoint);
+            assert_eq!(a.flipped_faces, 0, "face along triangle {t}: {a:?}");
+            assert!(a.max < 1e-9, "{a:?}");
+        }
+    }
+
     #[test]
     fn a_flipped_face_is_counted() {
         let m = uv_sphere(1.0, 10, 12);
