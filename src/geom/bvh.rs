@@ -306,20 +306,52 @@ impl<'a> TriangleBvh<'a> {
         out: &mut Neighbourhood,
     ) -> bool {
         out.items.clear();
+        self.each_in_box(lo, hi, u32::MAX, |i| {
+            let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+            let (min, max) = (a.min(b).min(c), a.max(b).max(c));
+            if !meets(min, max, lo, hi) {
+                return true;
+            }
+            if out.items.len() == limit {
+                return false;
+            }
+            out.items.push(Near {
+                leaf: i as u32,
+                min,
+                max,
+            });
+            true
+        })
+    }
+
+    /// Calls `visit` with the leaf-order index of every triangle in a leaf whose box meets
+    /// `lo..hi`, in tree order, until `visit` answers `false` or `max_nodes` nodes have been
+    /// visited; `false` when it stopped early either way.
+    fn each_in_box(
+        &self,
+        lo: DVec3,
+        hi: DVec3,
+        max_nodes: u32,
+        mut visit: impl FnMut(usize) -> bool,
+    ) -> bool {
         if self.order.is_empty() {
             return true;
         }
-        let meets = |min: DVec3, max: DVec3| min.cmple(hi).all() && max.cmpge(lo).all();
         let mut stack = [0u32; MAX_DEPTH];
         let mut top = 1;
+        let mut visited = 0;
         while top > 0 {
+            if visited == max_nodes {
+                return false;
+            }
+            visited += 1;
             top -= 1;
             let n = &self.nodes[stack[top] as usize];
             let (min, max) = (
                 DVec3::from_array(n.min.map(f64::from)),
                 DVec3::from_array(n.max.map(f64::from)),
             );
-            if !meets(min, max) {
+            if !meets(min, max, lo, hi) {
                 continue;
             }
             if n.count == 0 {
@@ -329,19 +361,8 @@ impl<'a> TriangleBvh<'a> {
                 continue;
             }
             let first = n.first as usize;
-            for i in first..first + n.count as usize {
-                let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
-                let (min, max) = (a.min(b).min(c), a.max(b).max(c));
-                if meets(min, max) {
-                    if out.items.len() == limit {
-                        return false;
-                    }
-                    out.items.push(Near {
-                        leaf: i as u32,
-                        min,
-                        max,
-                    });
-                }
+            if !(first..first + n.count as usize).all(&mut visit) {
+                return false;
             }
         }
         true
@@ -425,7 +446,6 @@ impl<'a> TriangleBvh<'a> {
             return hit.triangle;
         }
         let reach = hit.distance_squared.sqrt() + self.tie;
-        let (lo, hi) = (p - DVec3::splat(reach), p + DVec3::splat(reach));
         let score = |t: u32| {
             self.mesh
                 .triangle_cross(t as usize)
@@ -433,39 +453,22 @@ impl<'a> TriangleBvh<'a> {
                 .dot(normal)
         };
         let mut best = (score(hit.triangle), hit.triangle);
-        let mut stack = [0u32; MAX_DEPTH];
-        let mut top = 1;
-        let mut visited = 0;
-        while top > 0 && visited < self.budget {
-            top -= 1;
-            visited += 1;
-            let n = &self.nodes[stack[top] as usize];
-            let (min, max) = (
-                DVec3::from_array(n.min.map(f64::from)),
-                DVec3::from_array(n.max.map(f64::from)),
-            );
-            if !(min.cmple(hi).all() && max.cmpge(lo).all()) {
-                continue;
-            }
-            if n.count == 0 {
-                stack[top] = n.first;
-                stack[top + 1] = n.first + 1;
-                top += 2;
-                continue;
-            }
-            let first = n.first as usize;
-            for i in first..first + n.count as usize {
+        self.each_in_box(
+            p - DVec3::splat(reach),
+            p + DVec3::splat(reach),
+            self.budget,
+            |i| {
                 let near = self.leaf_hit(i, p);
-                if near.triangle == hit.triangle || near.distance_squared.sqrt() > reach {
-                    continue;
+                if near.triangle != hit.triangle && near.distance_squared.sqrt() <= reach {
+                    let s = score(near.triangle);
+                    // The lower index on equal scores: the answer does not depend on the tree.
+                    if s > best.0 || (s == best.0 && near.triangle < best.1) {
+                        best = (s, near.triangle);
+                    }
                 }
-                let s = score(near.triangle);
-                // The lower index on equal scores: the answer does not depend on the tree.
-                if s > best.0 || (s == best.0 && near.triangle < best.1) {
-                    best = (s, near.triangle);
-                }
-            }
-        }
+                true
+            },
+        );
         best.1
     }
 
@@ -480,6 +483,12 @@ impl<'a> TriangleBvh<'a> {
             distance_squared: point.distance_squared(p),
         }
     }
+}
+
+/// The box `min..max` meets the box `lo..hi` (touching counts).
+#[inline]
+fn meets(min: DVec3, max: DVec3, lo: DVec3, hi: DVec3) -> bool {
+    min.cmple(hi).all() && max.cmpge(lo).all()
 }
 
 /// Levels below the root of the tree over `len` triangles (median splits, leaves of up to
