@@ -9,7 +9,7 @@
 //! compute every vertex from the previous positions in parallel, so the result does not
 //! depend on the thread count.
 
-use super::corners::{Corners, NIL, VKind, prev};
+use super::corners::{Corners, NIL, VKind, next, prev};
 use super::fit::{self, FitReport};
 use super::lines::Lines;
 use super::ops::{self, Scratch};
@@ -22,6 +22,7 @@ use crate::mesh::topology::Topology;
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
+use std::collections::HashMap;
 
 /// What the passes did, summed over the iterations.
 #[derive(Debug, Clone, Copy, Default, Serialize)]
@@ -57,15 +58,25 @@ fn canonical(c: &Corners, h: u32) -> bool {
 /// opposite it. More than one pass is also needed because a split hands the side opposite
 /// it to a new face: an edge whose two sides were both handed on during a pass is not met
 /// again in it (on a coarse cube whole sides stayed unsplit for three iterations that way).
+///
+/// The first pass looks at every edge. A split moves no vertex and changes no size but the
+/// new vertex's, and every edge it makes ends at the new vertex; so an edge that was not
+/// too long when a pass began is still not too long after it unless it ends at a vertex
+/// the pass made, and each later pass looks at those edges only (the same list, in the
+/// same order, as looking at every edge).
 pub fn split_long(c: &mut Corners, lines: &Lines, sizing: &mut Sizing) -> usize {
     let mut n = 0;
     let mut hs = Vec::new();
+    let mut long: Vec<u32> = (0..c.vtx.len() as u32)
+        .filter(|&h| canonical(c, h) && too_long(c, sizing, h))
+        .collect();
     for _ in 0..SPLIT_PASSES {
-        let pass = split_pass(c, lines, sizing, &mut hs);
-        n += pass;
-        if pass == 0 {
+        if long.is_empty() {
             break;
         }
+        let first_new = c.pos.len() as u32;
+        n += split_pass(c, lines, sizing, &long, &mut hs);
+        long = long_edges_at(c, sizing, first_new..c.pos.len() as u32, &mut hs);
     }
     n
 }
@@ -74,14 +85,20 @@ pub fn split_long(c: &mut Corners, lines: &Lines, sizing: &mut Sizing) -> usize 
 /// waits for the next iteration.
 const SPLIT_PASSES: usize = 10;
 
-/// Splits each edge that is longer than its `sizing.hi` when the pass starts, once. The
-/// edges are listed by their ends first: a split renumbers the half-edges next to it.
-fn split_pass(c: &mut Corners, lines: &Lines, sizing: &mut Sizing, hs: &mut Vec<u32>) -> usize {
-    let long: Vec<(u32, u32)> = (0..c.vtx.len() as u32)
-        .filter(|&h| canonical(c, h) && too_long(c, sizing, h))
-        .map(|h| (c.vtx[h as usize], c.dest(h)))
+/// Splits each edge of `long` (canonical half-edges, in increasing order). The edges are
+/// looked up again by their ends: a split renumbers the half-edges next to it.
+fn split_pass(
+    c: &mut Corners,
+    lines: &Lines,
+    sizing: &mut Sizing,
+    long: &[u32],
+    hs: &mut Vec<u32>,
+) -> usize {
+    let ends: Vec<(u32, u32)> = long
+        .iter()
+        .map(|&h| (c.vtx[h as usize], c.dest(h)))
         .collect();
-    for &(a, b) in &long {
+    for &(a, b) in &ends {
         let Some(h) = c.half_edge(a, b, hs) else {
             continue;
         };
@@ -95,7 +112,35 @@ fn split_pass(c: &mut Corners, lines: &Lines, sizing: &mut Sizing, hs: &mut Vec<
         let m = ops::split(c, h, mid, seg);
         sizing.split(a, b, m);
     }
-    long.len()
+    ends.len()
+}
+
+/// The canonical half-edges of the edges at `vertices` that are too long, in increasing
+/// order without repeats.
+fn long_edges_at(
+    c: &Corners,
+    sizing: &Sizing,
+    vertices: std::ops::Range<u32>,
+    hs: &mut Vec<u32>,
+) -> Vec<u32> {
+    let mut long = Vec::new();
+    for v in vertices {
+        c.fan(v, hs);
+        // Each face at v holds one edge leaving v and one coming in (a border's last
+        // incoming edge too); an edge's canonical half-edge is one of its two.
+        for &k in hs.iter() {
+            for h in [k, prev(k)] {
+                let g = c.opp[h as usize];
+                let h = if g != NIL && g < h { g } else { h };
+                if canonical(c, h) && too_long(c, sizing, h) {
+                    long.push(h);
+                }
+            }
+        }
+    }
+    long.sort_unstable();
+    long.dedup();
+    long
 }
 
 /// The edge of `h` is longer than its `sizing.hi`, and neither end is locked.
@@ -121,41 +166,52 @@ fn order(c: &Corners, a: u32, b: u32) -> [(u32, u32); 2] {
 /// their rings, so after the first sweep an edge is tried again only when one of those four
 /// was touched (a survivor of a collapse, or in its ring) since it last failed: the same
 /// result as trying every edge, without re-trying the thousands that failed unchanged.
+/// A sweep after the first reads only the faces next to a touched vertex ([`FaceMarks`]),
+/// not every half-edge.
 pub fn collapse_short(c: &mut Corners, sizing: &Sizing, sc: &mut Scratch) -> usize {
     let mut total = 0;
     let mut touched_before = vec![true; c.pos.len()];
     let mut touched = vec![false; c.pos.len()];
+    let mut marks = FaceMarks::all(c);
     let (mut hs, mut ring) = (Vec::new(), Vec::new());
-    for _ in 0..COLLAPSE_SWEEPS {
+    for sweep in 0..COLLAPSE_SWEEPS {
         let mut n = 0;
-        for h in 0..c.vtx.len() as u32 {
-            if !canonical(c, h) {
-                continue;
-            }
-            let (a, b) = (c.vtx[h as usize], c.dest(h));
-            if c.pos[a as usize].distance(c.pos[b as usize]) >= sizing.lo(a, b) {
-                continue;
-            }
-            let g = c.opp[h as usize];
-            let opposite =
-                [Some(h), (g != NIL).then_some(g)].map(|k| k.map(|k| c.vtx[prev(k) as usize]));
-            let near = [Some(a), Some(b), opposite[0], opposite[1]];
-            if !near
-                .iter()
-                .flatten()
-                .any(|&v| touched_before[v as usize] || touched[v as usize])
-            {
-                continue;
-            }
-            for (x, y) in order(c, a, b) {
-                if ops::can_collapse(c, h, x, y, sizing, sc) {
-                    ops::collapse(c, h, x, y, sc);
-                    c.ring(y, &mut hs, &mut ring);
-                    for &v in ring.iter().chain([&y]) {
-                        touched[v as usize] = true;
+        let mut from = 0;
+        while let Some(f) = marks.first_from(from) {
+            from = f + 1;
+            for h in 3 * f as u32..3 * f as u32 + 3 {
+                if !canonical(c, h) {
+                    continue;
+                }
+                let (a, b) = (c.vtx[h as usize], c.dest(h));
+                if c.pos[a as usize].distance(c.pos[b as usize]) >= sizing.lo(a, b) {
+                    continue;
+                }
+                let g = c.opp[h as usize];
+                let opposite =
+                    [Some(h), (g != NIL).then_some(g)].map(|k| k.map(|k| c.vtx[prev(k) as usize]));
+                let near = [Some(a), Some(b), opposite[0], opposite[1]];
+                if !near
+                    .iter()
+                    .flatten()
+                    .any(|&v| touched_before[v as usize] || touched[v as usize])
+                {
+                    continue;
+                }
+                for (x, y) in order(c, a, b) {
+                    if ops::can_collapse(c, h, x, y, sizing, sc) {
+                        ops::collapse(c, h, x, y, sc);
+                        c.ring(y, &mut hs, &mut ring);
+                        for &v in ring.iter().chain([&y]) {
+                            touched[v as usize] = true;
+                            // Candidates later in this sweep (the first reads every face).
+                            if sweep > 0 {
+                                marks.around(c, v, &mut hs);
+                            }
+                        }
+                        n += 1;
+                        break;
                     }
-                    n += 1;
-                    break;
                 }
             }
         }
@@ -165,8 +221,79 @@ pub fn collapse_short(c: &mut Corners, sizing: &Sizing, sc: &mut Scratch) -> usi
         }
         std::mem::swap(&mut touched_before, &mut touched);
         touched.fill(false);
+        marks.clear();
+        for v in 0..c.pos.len() as u32 {
+            if touched_before[v as usize] && !c.vertex_dead[v as usize] {
+                marks.around(c, v, &mut hs);
+            }
+        }
     }
     total
+}
+
+/// Faces marked in a bit set, read in increasing order while more are being marked.
+struct FaceMarks {
+    bits: Vec<u64>,
+    faces: usize,
+    /// The faces at each locked vertex, whose fan need not reach them all. A collapse
+    /// never moves a locked vertex, so no face comes to it during the collapses.
+    at_locked: HashMap<u32, Vec<u32>>,
+}
+
+impl FaceMarks {
+    /// Every face marked.
+    fn all(c: &Corners) -> FaceMarks {
+        let mut at_locked: HashMap<u32, Vec<u32>> = HashMap::new();
+        for (h, &v) in c.vtx.iter().enumerate() {
+            if c.locked[v as usize] {
+                at_locked.entry(v).or_default().push((h / 3) as u32);
+            }
+        }
+        FaceMarks {
+            bits: vec![u64::MAX; c.face_count().div_ceil(64)],
+            faces: c.face_count(),
+            at_locked,
+        }
+    }
+
+    fn clear(&mut self) {
+        self.bits.fill(0);
+    }
+
+    fn mark(&mut self, f: u32) {
+        self.bits[(f / 64) as usize] |= 1 << (f % 64);
+    }
+
+    /// Marks every face holding a half-edge that has `v` among its ends or its opposite
+    /// vertices: the faces around `v`, and the faces across their sides opposite `v`.
+    fn around(&mut self, c: &Corners, v: u32, hs: &mut Vec<u32>) {
+        match self.at_locked.get(&v) {
+            Some(faces) => {
+                hs.clear();
+                let leaving = |f: &u32| (3 * f..3 * f + 3).filter(|&h| c.vtx[h as usize] == v);
+                hs.extend(faces.iter().flat_map(leaving));
+            }
+            None => c.fan(v, hs),
+        }
+        for &k in hs.iter() {
+            self.mark(k / 3);
+            let across = c.opp[next(k) as usize];
+            if across != NIL {
+                self.mark(across / 3);
+            }
+        }
+    }
+
+    /// The first marked face at or after `f`.
+    fn first_from(&self, f: usize) -> Option<usize> {
+        let mut w = f / 64;
+        let mut word = *self.bits.get(w)? & (u64::MAX << (f % 64));
+        while word == 0 {
+            w += 1;
+            word = *self.bits.get(w)?;
+        }
+        Some(64 * w + word.trailing_zeros() as usize).filter(|&g| g < self.faces)
+    }
 }
 
 /// Neighbour counts of every vertex.
@@ -563,5 +690,101 @@ mod tests {
             }
         }
         assert!(said == under, "{said} of {under}");
+    }
+
+    /// Every split pass listing every long edge, as [`split_long`] did before it looked only
+    /// at the edges of the vertices the last pass made.
+    fn split_scanning_every_edge(c: &mut Corners, lines: &Lines, sizing: &mut Sizing) -> usize {
+        let (mut n, mut hs) = (0, Vec::new());
+        for _ in 0..SPLIT_PASSES {
+            let long: Vec<u32> = (0..c.vtx.len() as u32)
+                .filter(|&h| canonical(c, h) && too_long(c, sizing, h))
+                .collect();
+            if long.is_empty() {
+                break;
+            }
+            n += split_pass(c, lines, sizing, &long, &mut hs);
+        }
+        n
+    }
+
+    /// Every collapse sweep trying every short edge.
+    fn collapse_trying_every_edge(c: &mut Corners, sizing: &Sizing) -> usize {
+        let (mut total, mut sc) = (0, Scratch::default());
+        for _ in 0..COLLAPSE_SWEEPS {
+            let mut n = 0;
+            for h in 0..c.vtx.len() as u32 {
+                let (a, b) = (c.vtx[h as usize], c.dest(h));
+                if !canonical(c, h)
+                    || c.pos[a as usize].distance(c.pos[b as usize]) >= sizing.lo(a, b)
+                {
+                    continue;
+                }
+                if let Some((x, y)) = order(c, a, b)
+                    .into_iter()
+                    .find(|&(x, y)| ops::can_collapse(c, h, x, y, sizing, &mut sc))
+                {
+                    ops::collapse(c, h, x, y, &mut sc);
+                    n += 1;
+                }
+            }
+            total += n;
+            if n == 0 {
+                break;
+            }
+        }
+        total
+    }
+
+    /// The split passes after the first and the collapse sweeps after the first look only
+    /// where the last one changed something; on a real scan (james: ragged borders, seams,
+    /// five locked vertices) at two lengths in turn, they do exactly what passes over every
+    /// edge do.
+    #[test]
+    fn passes_that_look_only_near_changes_match_passes_over_every_edge() {
+        let path = "../shared/data/textured/james_face_stereo_capture/james.obj";
+        let options = crate::mesh::LoadOptions {
+            check_textures: false,
+            ..Default::default()
+        };
+        let mesh = crate::mesh::load(std::path::Path::new(path), &options)
+            .unwrap_or_else(|e| panic!("{path}: {e}"))
+            .0;
+        let topo = Topology::new(&mesh);
+        let lines = Lines::new(&mesh, &topo, None);
+        let mut fast = super::super::build::build(&mesh, &topo, &lines);
+        assert!(fast.locked.iter().any(|&l| l));
+        let mut every = fast.clone();
+        let diagonal = mesh.bounding_box_diagonal();
+        let mut r = rng(7);
+        for fraction in [0.01, 0.006, 0.01, 0.004, 0.008] {
+            // Every vertex jittered by up to a third of the length, the same in both.
+            let l = fraction * diagonal;
+            for (p, q) in fast.pos.iter_mut().zip(every.pos.iter_mut()) {
+                let d = DVec3::new(
+                    r.random_range(-1.0..1.0),
+                    r.random_range(-1.0..1.0),
+                    r.random_range(-1.0..1.0),
+                );
+                *p += l / 3.0 * d;
+                *q = *p;
+            }
+            let mut sizing = Sizing::uniform(l);
+            let mut sizing_every = sizing.clone();
+            let splits = split_long(&mut fast, &lines, &mut sizing);
+            assert!(splits > 0);
+            assert_eq!(
+                splits,
+                split_scanning_every_edge(&mut every, &lines, &mut sizing_every)
+            );
+            let collapses = collapse_short(&mut fast, &sizing, &mut Scratch::default());
+            assert!(collapses > 0);
+            assert_eq!(collapses, collapse_trying_every_edge(&mut every, &sizing));
+            fast.check().unwrap();
+            assert_eq!(fast.vtx, every.vtx);
+            assert_eq!(fast.opp, every.opp);
+            assert_eq!(fast.pos, every.pos);
+            assert_eq!(fast.face_dead, every.face_dead);
+        }
     }
 }
