@@ -100,14 +100,29 @@ impl Corners {
     /// The outgoing half-edges of `v`, counter-clockwise from `out[v]`.
     pub fn fan(&self, v: u32, hs: &mut Vec<u32>) {
         hs.clear();
+        hs.extend(self.fan_iter(v));
+    }
+
+    /// The outgoing half-edges of `v`, counter-clockwise from `out[v]`, walked in place:
+    /// for the passes that read a fan once and need no list of it.
+    #[inline]
+    pub fn fan_iter(&self, v: u32) -> Fan<'_> {
         let start = self.out[v as usize];
-        let mut h = start;
-        loop {
-            hs.push(h);
-            h = self.rotate(h);
-            if h == NIL || h == start || hs.len() > MAX_FAN {
-                break;
-            }
+        Fan {
+            c: self,
+            start,
+            next: start,
+            walked: 0,
+            border_end: NIL,
+        }
+    }
+
+    /// The neighbours of `v` in ring order, walked in place (what [`Corners::ring`] lists).
+    #[inline]
+    pub fn neighbours(&self, v: u32) -> Neighbours<'_> {
+        Neighbours {
+            fan: self.fan_iter(v),
+            last_done: false,
         }
     }
 
@@ -126,12 +141,7 @@ impl Corners {
     pub fn ring(&self, v: u32, hs: &mut Vec<u32>, ring: &mut Vec<u32>) {
         self.fan(v, hs);
         ring.clear();
-        ring.extend(hs.iter().map(|&h| self.dest(h)));
-        if let Some(&last) = hs.last()
-            && self.rotate(last) == NIL
-        {
-            ring.push(self.vtx[prev(last) as usize]);
-        }
+        ring.extend(self.neighbours(v));
     }
 
     pub fn is_border_vertex(&self, v: u32) -> bool {
@@ -184,6 +194,64 @@ impl Corners {
     pub fn face_cross(&self, f: usize) -> DVec3 {
         let [a, b, c] = self.face_positions(f);
         (b - a).cross(c - a)
+    }
+}
+
+/// The outgoing half-edges of a vertex ([`Corners::fan_iter`]): from `out[v]`, rotating
+/// counter-clockwise until the fan closes, a border ends it, or [`MAX_FAN`] is passed.
+pub struct Fan<'a> {
+    c: &'a Corners,
+    start: u32,
+    next: u32,
+    walked: usize,
+    /// The last half-edge, when a border ended the fan.
+    border_end: u32,
+}
+
+impl Iterator for Fan<'_> {
+    type Item = u32;
+
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        let h = self.next;
+        if h == NIL {
+            return None;
+        }
+        self.walked += 1;
+        let g = self.c.rotate(h);
+        if g == NIL {
+            self.border_end = h;
+        }
+        self.next = if g == self.start || self.walked > MAX_FAN {
+            NIL
+        } else {
+            g
+        };
+        Some(h)
+    }
+}
+
+/// The neighbours of a vertex ([`Corners::neighbours`]): the end of each outgoing
+/// half-edge, and on a border the vertex the last face's incoming side starts at.
+pub struct Neighbours<'a> {
+    fan: Fan<'a>,
+    last_done: bool,
+}
+
+impl Iterator for Neighbours<'_> {
+    type Item = u32;
+
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        if let Some(h) = self.fan.next() {
+            return Some(self.fan.c.dest(h));
+        }
+        let h = self.fan.border_end;
+        if self.last_done || h == NIL {
+            return None;
+        }
+        self.last_done = true;
+        Some(self.fan.c.vtx[prev(h) as usize])
     }
 }
 

@@ -31,7 +31,7 @@
 //! texture charts.
 
 use super::corners::{Corners, NIL, VKind};
-use super::ops::{Scratch, fan_keeps_orientation};
+use super::ops::fan_keeps_orientation;
 use super::walk;
 use crate::mesh::Mesh;
 use crate::mesh::topology::Topology;
@@ -76,10 +76,7 @@ pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> (FitReport, Vec<u3
         let moved: Vec<DVec3> = fitted
             .par_iter()
             .zip(&anchors)
-            .map_init(
-                || (Vec::new(), Scratch::default()),
-                |(hs, sc), (&v, &anchor)| step(c, &feet, v, anchor, hs, sc),
-            )
+            .map(|(&v, &anchor)| step(c, &feet, v, anchor))
             .collect();
         for (&v, p) in fitted.iter().zip(moved) {
             c.pos[v as usize] = p;
@@ -121,18 +118,10 @@ fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<(Option<DVec3>, u32)>
 }
 
 /// v's position after one Jacobi round (see the module documentation).
-fn step(
-    c: &Corners,
-    feet: &[Option<DVec3>],
-    v: u32,
-    anchor: DVec3,
-    hs: &mut Vec<u32>,
-    sc: &mut Scratch,
-) -> DVec3 {
+fn step(c: &Corners, feet: &[Option<DVec3>], v: u32, anchor: DVec3) -> DVec3 {
     let x = c.pos[v as usize];
-    c.fan(v, hs);
     let (mut normal, mut area) = (DVec3::ZERO, 0.0);
-    for &h in hs.iter() {
+    for h in c.fan_iter(v) {
         let cross = c.face_cross((h / 3) as usize);
         normal += cross;
         area += 0.5 * cross.length();
@@ -143,7 +132,7 @@ fn step(
     }
     let w0 = ANCHOR * area / 3.0;
     let (mut num, mut den) = (w0 * n.dot(anchor - x), w0);
-    for &h in hs.iter() {
+    for h in c.fan_iter(v) {
         let f = (h / 3) as usize;
         let Some(foot) = feet[f] else { continue };
         let cross = c.face_cross(f);
@@ -157,7 +146,7 @@ fn step(
         return x;
     }
     let target = x + n * (DAMPING * num / den);
-    if fan_keeps_orientation(c, v, target, sc) {
+    if fan_keeps_orientation(c, v, target) {
         target
     } else {
         x

@@ -326,7 +326,7 @@ fn quad(c: &Corners, h: u32) -> [u32; 4] {
     ]
 }
 
-pub fn equalize_valences(c: &mut Corners, sc: &mut Scratch) -> usize {
+pub fn equalize_valences(c: &mut Corners) -> usize {
     let mut val = valences(c);
     let mut n = 0;
     for h in 0..c.vtx.len() as u32 {
@@ -344,7 +344,7 @@ pub fn equalize_valences(c: &mut Corners, sc: &mut Scratch) -> usize {
         if after[0] < 3 || after[1] < 3 || dev(&after) >= dev(&before) {
             continue;
         }
-        if ops::can_flip(c, h, sc) {
+        if ops::can_flip(c, h) {
             ops::flip(c, h);
             for (i, v) in q.iter().enumerate() {
                 val[*v as usize] = after[i];
@@ -375,7 +375,7 @@ fn clearly_under_pi(pc: DVec3, pd: DVec3, pa: DVec3, pb: DVec3) -> bool {
 
 /// Flips an edge when the two angles opposite it sum to more than π (plus a margin, so a
 /// flip is never undone by the next): the flipped pair has a larger smallest angle.
-pub fn flip_angles(c: &mut Corners, sc: &mut Scratch) -> usize {
+pub fn flip_angles(c: &mut Corners) -> usize {
     let val = valences(c);
     let mut n = 0;
     for h in 0..c.vtx.len() as u32 {
@@ -391,7 +391,7 @@ pub fn flip_angles(c: &mut Corners, sc: &mut Scratch) -> usize {
             continue;
         }
         let opposite = angle_at(pc, pa, pb) + angle_at(pd, pa, pb);
-        if opposite > std::f64::consts::PI + 1e-3 && ops::can_flip(c, h, sc) {
+        if opposite > std::f64::consts::PI + 1e-3 && ops::can_flip(c, h) {
             ops::flip(c, h);
             n += 1;
         }
@@ -509,14 +509,14 @@ fn relaxed(c: &Corners, lines: &Lines, sizing: &Sizing, v: u32, sc: &mut Scratch
         VKind::Line => return relaxed_on_line(c, lines, v, sc),
         VKind::Free => {
             let (centroid, normal) = match sizing {
-                Sizing::Uniform { .. } => ops::fan_centroid(c, v, sc),
-                Sizing::Adaptive { size, .. } => ops::fan_centroid_sized(c, v, size, sc),
+                Sizing::Uniform { .. } => ops::fan_centroid(c, v),
+                Sizing::Adaptive { size, .. } => ops::fan_centroid_sized(c, v, size),
             };
             let d = centroid - p;
             p + d - normal * normal.dot(d)
         }
     };
-    if ops::fan_keeps_orientation(c, v, target, sc) {
+    if ops::fan_keeps_orientation(c, v, target) {
         target
     } else {
         p
@@ -544,12 +544,12 @@ fn relaxed_on_line(c: &Corners, lines: &Lines, v: u32, sc: &mut Scratch) -> DVec
     let along = p + t * t.dot(0.5 * (px + py) - p);
     let ok = match c.vseg[v as usize] {
         // Not on a segment of the input's lines (nothing to project onto): along the chord.
-        NIL => ops::fan_keeps_orientation(c, v, along, sc).then_some(along),
+        NIL => ops::fan_keeps_orientation(c, v, along).then_some(along),
         seg => {
             let (target, _) = lines.project(along, seg);
-            let floor = |sc: &mut Scratch| LINE_MOVE_QUALITY.min(ops::fan_min_quality(c, v, p, sc));
-            (ops::fan_keeps_orientation(c, v, target, sc)
-                && ops::fan_min_quality(c, v, target, sc) >= floor(sc))
+            let floor = || LINE_MOVE_QUALITY.min(ops::fan_min_quality(c, v, p));
+            (ops::fan_keeps_orientation(c, v, target)
+                && ops::fan_min_quality(c, v, target) >= floor())
             .then_some(target)
         }
     };
@@ -569,7 +569,7 @@ const LINE_MOVE_QUALITY: f64 = 0.2;
 pub fn project(c: &mut Corners, input: &Input) {
     let new: Vec<(DVec3, u32, u32)> = (0..c.pos.len() as u32)
         .into_par_iter()
-        .map_init(Scratch::default, |sc, v| projected(c, input, v, sc))
+        .map(|v| projected(c, input, v))
         .collect();
     for (v, (p, seg, tri)) in new.into_iter().enumerate() {
         c.pos[v] = p;
@@ -578,7 +578,7 @@ pub fn project(c: &mut Corners, input: &Input) {
     }
 }
 
-fn projected(c: &Corners, input: &Input, v: u32, sc: &mut Scratch) -> (DVec3, u32, u32) {
+fn projected(c: &Corners, input: &Input, v: u32) -> (DVec3, u32, u32) {
     let i = v as usize;
     let (p, seg, tri) = (c.pos[i], c.vseg[i], c.vtri[i]);
     if c.vertex_dead[i] || c.locked[i] {
@@ -596,7 +596,7 @@ fn projected(c: &Corners, input: &Input, v: u32, sc: &mut Scratch) -> (DVec3, u3
             None => return (p, seg, tri),
         },
     };
-    if ops::fan_keeps_orientation(c, v, q, sc) {
+    if ops::fan_keeps_orientation(c, v, q) {
         (q, seg, tri)
     } else {
         (p, c.vseg[i], tri)
@@ -638,13 +638,13 @@ pub fn run(
     for _ in 0..iterations {
         counts.splits += split_long(c, lines, sizing);
         counts.collapses += collapse_short(c, sizing, &mut sc);
-        counts.valence_flips += equalize_valences(c, &mut sc);
+        counts.valence_flips += equalize_valences(c);
         let before = Placement::of(c);
         relax(c, lines, sizing, &before);
         project(c, input);
         undo_degenerate(c, &before);
         sizing.follow(c, lines, mesh);
-        counts.angle_flips += flip_angles(c, &mut sc);
+        counts.angle_flips += flip_angles(c);
     }
     let under = fit.then(|| {
         let (report, under) = fit::fit(c, mesh, topo);

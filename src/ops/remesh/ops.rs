@@ -13,8 +13,6 @@ use glam::DVec3;
 #[derive(Debug, Default)]
 pub struct Scratch {
     hs: Vec<u32>,
-    ring_a: Vec<u32>,
-    ring_b: Vec<u32>,
     link: Vec<(u32, u32)>,
     link_scratch: LinkScratch,
 }
@@ -101,21 +99,18 @@ pub fn can_collapse(
     }
     // The length bound first: one ring walk, and it rejects most candidates.
     let pb = c.pos[b as usize];
-    c.ring(a, &mut sc.hs, &mut sc.ring_a);
-    if sc
-        .ring_a
-        .iter()
-        .any(|&x| x != b && c.pos[x as usize].distance(pb) > sizing.hi(x, b))
+    if c.neighbours(a)
+        .any(|x| x != b && c.pos[x as usize].distance(pb) > sizing.hi(x, b))
     {
         return false;
     }
-    removed_sides_ok(c, h, sc) && link_ok(c, a, b, sc) && faces_ok(c, a, b, sc)
+    removed_sides_ok(c, h) && link_ok(c, a, b, sc) && faces_ok(c, a, b)
 }
 
 /// The checks of [`can_collapse`] that do not look at positions: [`may_go`], the removed
 /// faces' sides and the link condition.
 pub fn can_collapse_topologically(c: &Corners, h: u32, a: u32, b: u32, sc: &mut Scratch) -> bool {
-    may_go(c, h, a, b) && removed_sides_ok(c, h, sc) && link_ok(c, a, b, sc)
+    may_go(c, h, a, b) && removed_sides_ok(c, h) && link_ok(c, a, b, sc)
 }
 
 /// Neither vertex locked, and `a` free to go along `h`: a line vertex only along its line,
@@ -129,22 +124,22 @@ fn may_go(c: &Corners, h: u32, a: u32, b: u32) -> bool {
 }
 
 /// [`sides_ok`] for both faces the collapse of `h` removes.
-fn removed_sides_ok(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
+fn removed_sides_ok(c: &Corners, h: u32) -> bool {
     let g = c.opp[h as usize];
-    sides_ok(c, h, sc) && (g == NIL || sides_ok(c, g, sc))
+    sides_ok(c, h) && (g == NIL || sides_ok(c, g))
 }
 
 /// A face removed by a collapse: its two other edges are not both constrained (they
 /// become one edge) and not both borders, and its third vertex keeps at least three
 /// neighbours.
-fn sides_ok(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
+fn sides_ok(c: &Corners, h: u32) -> bool {
     let (n, p) = (next(h), prev(h));
     if c.is_constrained(n) && c.is_constrained(p) {
         return false;
     }
     let x = c.vtx[p as usize];
-    c.ring(x, &mut sc.hs, &mut sc.ring_b);
-    sc.ring_b.len() > 3 || (c.is_border_vertex(x) && sc.ring_b.len() > 2)
+    let neighbours = c.neighbours(x).count();
+    neighbours > 3 || (c.is_border_vertex(x) && neighbours > 2)
 }
 
 /// The link condition after merging: the faces around the merged vertex form one disk or
@@ -152,8 +147,7 @@ fn sides_ok(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
 fn link_ok(c: &Corners, a: u32, b: u32, sc: &mut Scratch) -> bool {
     sc.link.clear();
     for v in [a, b] {
-        c.fan(v, &mut sc.hs);
-        for &h in &sc.hs {
+        for h in c.fan_iter(v) {
             let (x, y) = (c.dest(h), c.vtx[prev(h) as usize]);
             if x == a || x == b || y == a || y == b {
                 continue;
@@ -170,10 +164,9 @@ fn link_ok(c: &Corners, a: u32, b: u32, sc: &mut Scratch) -> bool {
 }
 
 /// Every face of `a` that stays keeps its orientation and area with `a` at `b`'s place.
-fn faces_ok(c: &Corners, a: u32, b: u32, sc: &mut Scratch) -> bool {
+fn faces_ok(c: &Corners, a: u32, b: u32) -> bool {
     let pb = c.pos[b as usize];
-    c.fan(a, &mut sc.hs);
-    sc.hs.iter().all(|&h| {
+    c.fan_iter(a).all(|h| {
         let (x, y) = (c.dest(h), c.vtx[prev(h) as usize]);
         if x == b || y == b {
             return true;
@@ -235,8 +228,8 @@ fn remove_face(c: &mut Corners, h: u32) {
 
 /// Whether flipping the edge of `h` (a→b, faces a b c and b a d) to c–d is allowed, and
 /// the two new faces are fine.
-pub fn can_flip(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
-    if !can_flip_topologically(c, h, sc) {
+pub fn can_flip(c: &Corners, h: u32) -> bool {
+    if !can_flip_topologically(c, h) {
         return false;
     }
     let g = c.opp[h as usize];
@@ -261,7 +254,7 @@ pub fn can_flip(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
 
 /// Whether the edge of `h` (a→b, faces a b c and b a d) is free, its four vertices are not
 /// locked, and c–d is not an edge already (the flip would make it non-manifold).
-pub fn can_flip_topologically(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
+pub fn can_flip_topologically(c: &Corners, h: u32) -> bool {
     if c.is_constrained(h) {
         return false;
     }
@@ -271,8 +264,7 @@ pub fn can_flip_topologically(c: &Corners, h: u32, sc: &mut Scratch) -> bool {
     if cc == d || [a, b, cc, d].iter().any(|&v| c.locked[v as usize]) {
         return false;
     }
-    c.ring(cc, &mut sc.hs, &mut sc.ring_a);
-    !sc.ring_a.contains(&d)
+    !c.neighbours(cc).any(|x| x == d)
 }
 
 /// Flips the edge of `h` (a→b, faces a b c and b a d) to c–d; [`can_flip`] said yes.
@@ -343,15 +335,15 @@ pub fn line_neighbours(c: &Corners, v: u32, sc: &mut Scratch) -> Option<[u32; 2]
 }
 
 /// The area-weighted centroid of the faces around `v` and their unit area-weighted normal.
-pub fn fan_centroid(c: &Corners, v: u32, sc: &mut Scratch) -> (DVec3, DVec3) {
-    weighted_fan_centroid(c, v, sc, |_| 1.0)
+pub fn fan_centroid(c: &Corners, v: u32) -> (DVec3, DVec3) {
+    weighted_fan_centroid(c, v, |_| 1.0)
 }
 
 /// As [`fan_centroid`], each face weighted by its area over the square of its mean vertex
 /// size (`size`), so that the centroid of a graded fan is not pulled towards its larger
 /// faces (pmp-library's adaptive relaxation weights).
-pub fn fan_centroid_sized(c: &Corners, v: u32, size: &[f64], sc: &mut Scratch) -> (DVec3, DVec3) {
-    weighted_fan_centroid(c, v, sc, |f| {
+pub fn fan_centroid_sized(c: &Corners, v: u32, size: &[f64]) -> (DVec3, DVec3) {
+    weighted_fan_centroid(c, v, |f| {
         let s = (0..3).map(|i| size[c.vtx[3 * f + i] as usize]).sum::<f64>() / 3.0;
         s * s
     })
@@ -359,15 +351,9 @@ pub fn fan_centroid_sized(c: &Corners, v: u32, size: &[f64], sc: &mut Scratch) -
 
 /// The centroid of the faces around `v`, face f weighted by its area over `divisor(f)`, and
 /// their unit area-weighted normal; `v` itself and no normal when the weights vanish.
-fn weighted_fan_centroid(
-    c: &Corners,
-    v: u32,
-    sc: &mut Scratch,
-    divisor: impl Fn(usize) -> f64,
-) -> (DVec3, DVec3) {
-    c.fan(v, &mut sc.hs);
+fn weighted_fan_centroid(c: &Corners, v: u32, divisor: impl Fn(usize) -> f64) -> (DVec3, DVec3) {
     let (mut sum, mut weight, mut normal) = (DVec3::ZERO, 0.0, DVec3::ZERO);
-    for &h in &sc.hs {
+    for h in c.fan_iter(v) {
         let f = (h / 3) as usize;
         let n = c.face_cross(f);
         let [a, b, d] = c.face_positions(f);
@@ -384,11 +370,9 @@ fn weighted_fan_centroid(
 }
 
 /// The worst shape quality (`decimate::guards::quality`) of `v`'s faces with `v` at `p`.
-pub fn fan_min_quality(c: &Corners, v: u32, p: DVec3, sc: &mut Scratch) -> f64 {
-    c.fan(v, &mut sc.hs);
-    sc.hs
-        .iter()
-        .map(|&h| {
+pub fn fan_min_quality(c: &Corners, v: u32, p: DVec3) -> f64 {
+    c.fan_iter(v)
+        .map(|h| {
             q([
                 p,
                 c.pos[c.dest(h) as usize],
@@ -399,9 +383,8 @@ pub fn fan_min_quality(c: &Corners, v: u32, p: DVec3, sc: &mut Scratch) -> f64 {
 }
 
 /// Moving `v` to `p` keeps every face around it facing the way it faced and not degenerate.
-pub fn fan_keeps_orientation(c: &Corners, v: u32, p: DVec3, sc: &mut Scratch) -> bool {
-    c.fan(v, &mut sc.hs);
-    sc.hs.iter().all(|&h| {
+pub fn fan_keeps_orientation(c: &Corners, v: u32, p: DVec3) -> bool {
+    c.fan_iter(v).all(|h| {
         let (x, y) = (c.dest(h), c.vtx[prev(h) as usize]);
         let before = c.face_cross((h / 3) as usize);
         face_ok([p, c.pos[x as usize], c.pos[y as usize]], before)

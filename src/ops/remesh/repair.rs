@@ -318,7 +318,7 @@ impl Pass<'_> {
     fn try_flips(&mut self, c: &mut Corners, f: usize) -> bool {
         for h in (3 * f as u32)..(3 * f as u32 + 3) {
             let g = c.opp[h as usize];
-            if g == NIL || !ops::can_flip_topologically(c, h, self.sc) {
+            if g == NIL || !ops::can_flip_topologically(c, h) {
                 continue;
             }
             let (a, b) = (c.vtx[h as usize], c.dest(h));
@@ -406,7 +406,7 @@ impl Pass<'_> {
         let bvh = self.input.bvh;
         let queries = match reach {
             Reach::Near => {
-                let (centroid, _) = ops::fan_centroid(c, v, self.sc);
+                let (centroid, _) = ops::fan_centroid(c, v);
                 vec![(centroid, false), (centroid, true), (here, false)]
             }
             // Across a fold the closest point of a point nearby can be on the sheet the

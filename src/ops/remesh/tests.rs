@@ -28,6 +28,22 @@ fn splits_keep_the_table_whole() {
     c.check().unwrap();
 }
 
+/// Every edge is met from both its ends by the in-place walk of the neighbours: a border
+/// vertex's last neighbour (whose edge closes no face on that side) included, so the counts
+/// sum to twice the edges.
+#[test]
+fn neighbours_meet_every_edge_from_both_ends() {
+    for mesh in [shapes::grid(4, 3), shapes::uv_sphere(1.0, 6, 8)] {
+        let (c, _) = working(&mesh);
+        let border = (0..c.vtx.len() as u32).filter(|&h| c.is_border(h)).count();
+        let edges = (c.vtx.len() - border) / 2 + border;
+        let sum: usize = (0..c.pos.len() as u32)
+            .map(|v| c.neighbours(v).count())
+            .sum();
+        assert_eq!(sum, 2 * edges);
+    }
+}
+
 #[test]
 fn sphere_stays_closed_manifold_unflipped_and_regular() {
     let mesh = shapes::uv_sphere(1.0, 24, 48);
