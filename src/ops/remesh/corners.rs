@@ -138,8 +138,7 @@ impl Corners {
     }
 
     /// The neighbours of `v` in ring order (the last one of a border vertex closes no face).
-    pub fn ring(&self, v: u32, hs: &mut Vec<u32>, ring: &mut Vec<u32>) {
-        self.fan(v, hs);
+    pub fn ring(&self, v: u32, ring: &mut Vec<u32>) {
         ring.clear();
         ring.extend(self.neighbours(v));
     }

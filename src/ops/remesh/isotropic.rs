@@ -76,7 +76,7 @@ pub fn split_long(c: &mut Corners, lines: &Lines, sizing: &mut Sizing) -> usize 
         }
         let first_new = c.pos.len() as u32;
         n += split_pass(c, lines, sizing, &long, &mut hs);
-        long = long_edges_at(c, sizing, first_new..c.pos.len() as u32, &mut hs);
+        long = long_edges_at(c, sizing, first_new..c.pos.len() as u32);
     }
     n
 }
@@ -117,18 +117,12 @@ fn split_pass(
 
 /// The canonical half-edges of the edges at `vertices` that are too long, in increasing
 /// order without repeats.
-fn long_edges_at(
-    c: &Corners,
-    sizing: &Sizing,
-    vertices: std::ops::Range<u32>,
-    hs: &mut Vec<u32>,
-) -> Vec<u32> {
+fn long_edges_at(c: &Corners, sizing: &Sizing, vertices: std::ops::Range<u32>) -> Vec<u32> {
     let mut long = Vec::new();
     for v in vertices {
-        c.fan(v, hs);
         // Each face at v holds one edge leaving v and one coming in (a border's last
         // incoming edge too); an edge's canonical half-edge is one of its two.
-        for &k in hs.iter() {
+        for k in c.fan_iter(v) {
             for h in [k, prev(k)] {
                 let g = c.opp[h as usize];
                 let h = if g != NIL && g < h { g } else { h };
@@ -201,7 +195,7 @@ pub fn collapse_short(c: &mut Corners, sizing: &Sizing, sc: &mut Scratch) -> usi
                 for (x, y) in order(c, a, b) {
                     if ops::can_collapse(c, h, x, y, sizing, sc) {
                         ops::collapse(c, h, x, y, sc);
-                        c.ring(y, &mut hs, &mut ring);
+                        c.ring(y, &mut ring);
                         for &v in ring.iter().chain([&y]) {
                             touched[v as usize] = true;
                             // Candidates later in this sweep (the first reads every face).

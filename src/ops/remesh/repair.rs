@@ -256,7 +256,7 @@ fn faces_near(c: &Corners, changed: &[u32], hs: &mut Vec<u32>) -> Vec<usize> {
         if c.vertex_dead[v as usize] {
             continue;
         }
-        c.ring(v, hs, &mut ring);
+        c.ring(v, &mut ring);
         for &u in ring.iter().chain([&v]) {
             c.fan(u, hs);
             near.extend(hs.iter().map(|&h| (h / 3) as usize));
@@ -413,7 +413,7 @@ impl Pass<'_> {
             // faces around agree with.
             Reach::Far => {
                 let mut ring = Vec::new();
-                c.ring(v, &mut self.hs, &mut ring);
+                c.ring(v, &mut ring);
                 ring.iter()
                     .map(|&u| (here.lerp(c.pos[u as usize], TOWARDS_NEIGHBOUR), false))
                     .collect()

@@ -25,12 +25,6 @@ pub struct Foot {
     pub settled: bool,
 }
 
-/// The point of the input closest to `q`, by [`walk`] over all triangles; where the walk runs
-/// out of steps, the closest point it reached.
-pub fn closest(input: &Mesh, topo: &Topology, start: u32, q: DVec3) -> DVec3 {
-    walk(input, topo, start, q, |_| true).point
-}
-
 /// The point closest to `q` found by walking from triangle `start` to the neighbour with a
 /// closer point, among the triangles `within` admits, until none is closer. A neighbour
 /// is a triangle across an edge, or, when the closest point is a corner of the current
