@@ -22,7 +22,7 @@
 
 mod common;
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
 use scanmill::ops::decimate::{DecimateParams, Halves, Method, decimate};
@@ -203,4 +203,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

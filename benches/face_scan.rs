@@ -17,7 +17,7 @@ mod common;
 mod reference;
 
 use common::{FACE, FACES, face400k};
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use scanmill::mesh::{SaveOptions, save};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -138,4 +138,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

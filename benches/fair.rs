@@ -6,7 +6,7 @@
 //!
 //! Run: `cargo bench --bench fair`. Each run prints vertex updates per second.
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use scanmill::mesh::{LoadOptions, Mesh, io};
 use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
 use scanmill::ops::fair::{self, FairParams, RelaxParams, Schedule};
@@ -73,4 +73,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

@@ -9,7 +9,7 @@
 mod common;
 
 use common::face400k;
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use scanmill::mesh::ply::PlyEncoding;
 use scanmill::mesh::{LoadOptions, Mesh, SaveOptions, load, save};
 use std::hint::black_box;
@@ -100,4 +100,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

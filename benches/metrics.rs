@@ -4,7 +4,7 @@
 //! Target: the surface distance (both BVH builds, both directions, default sample count)
 //! under 1 s on two cores. The setup prints the metric values once, as a sanity line.
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use scanmill::mesh::io::load;
 use scanmill::mesh::{LoadOptions, Mesh};
 use scanmill::metrics::noise::{NoiseOptions, noisy_copy};
@@ -127,4 +127,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

@@ -3,7 +3,7 @@
 //! (about 34 MB of OBJ). `load` is the whole path (read, parse, MTL, texture check, welding
 //! and repair); `parse` is the OBJ parser alone, without `MeshBuilder::finish`.
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use scanmill::mesh::{LoadOptions, Mesh, load, obj};
 use scanmill::ops::subdivide::subdivide;
 use std::hint::black_box;
@@ -60,4 +60,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

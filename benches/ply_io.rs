@@ -1,7 +1,7 @@
 //! PLY read and write speed: a synthetic 400k-triangle binary file (the size target) and the
 //! largest real PLY in the data (igea, 269k triangles).
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use glam::DVec3;
 use scanmill::mesh::ply::{self, PlyEncoding};
 use scanmill::mesh::{Corner, LoadOptions, Mesh, MeshBuilder};
@@ -70,4 +70,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

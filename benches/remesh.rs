@@ -8,7 +8,7 @@
 //! texels of its 2400×1600 photo read from the input surface, and the PNG encoded).
 //! A scan that is missing fails the bench: the figures must not quietly shrink.
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use scanmill::mesh::{LoadOptions, Mesh, load};
 use scanmill::ops::remesh::{Method, RemeshParams, remesh};
 use std::hint::black_box;
@@ -131,4 +131,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

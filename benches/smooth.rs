@@ -4,7 +4,7 @@
 //! Throughput is in vertex updates (smoothed vertices × passes); the target is at least
 //! 10 million per second on the project's 2-core machine.
 
-use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{BatchSize, Criterion, Throughput, criterion_group};
 use scanmill::mesh::{LoadOptions, Mesh, ply};
 use scanmill::ops::smooth::{MethodName, SmoothParams, SmoothParamsFile, Smoother, Weights};
 use std::hint::black_box;
@@ -86,4 +86,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

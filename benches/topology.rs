@@ -1,7 +1,7 @@
 //! Topology and summary of a synthetic 400k-triangle grid (the size of a large raw scan).
 //! Target: `Topology::new` well under 0.2 s in release.
 
-use criterion::{Criterion, criterion_group, criterion_main};
+use criterion::{Criterion, criterion_group};
 use glam::{DVec2, DVec3};
 use scanmill::mesh::{Mesh, MeshSummary, Topology, Wedge};
 use std::hint::black_box;
@@ -60,4 +60,10 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-criterion_main!(benches);
+fn main() {
+    // On a thread of rayon's pool, as `scanmill process` runs a job.
+    scanmill::process::on_pool(benches);
+    criterion::Criterion::default()
+        .configure_from_args()
+        .final_summary();
+}

@@ -144,15 +144,18 @@ pub struct CompareTable {
     pub rows: Vec<CompareRow>,
 }
 
-/// Loads `input` and compares `recipes` on it.
+/// Loads `input` and compares `recipes` on it, on a thread of rayon's pool as a job runs
+/// ([`crate::process::on_pool`]), so that the times are a job's.
 pub fn run(
     input: &Path,
     recipes: &[NamedRecipe],
     options: &CompareOptions,
 ) -> Result<CompareTable, CompareError> {
-    let load = LoadOptions::default();
-    let (clean, _) = crate::mesh::load(input, &load)?;
-    run_on_mesh(&clean, &input.display().to_string(), recipes, options)
+    crate::process::on_pool(|| {
+        let load = LoadOptions::default();
+        let (clean, _) = crate::mesh::load(input, &load)?;
+        run_on_mesh(&clean, &input.display().to_string(), recipes, options)
+    })
 }
 
 /// Compares `recipes` on an already loaded clean mesh (tests share one load this way).
