@@ -228,8 +228,12 @@ fn hash_input(path: &Path) -> Result<FileHash, MeshError> {
 /// wake. The remesher runs dozens of short parallel loops between sequential passes: on the
 /// two-core workstation its step on james took 68 ms from outside the pool and 55 ms on it
 /// (docs/remeshing.md, "The second core comes late"). Jobs and benchmarks run on it.
+///
+/// The caller's tracing span is entered on the pool's thread too, so that the job's log
+/// lines still name it (the daemon's worker process names its job there).
 pub fn on_pool<R: Send>(job: impl FnOnce() -> R + Send) -> R {
-    rayon::scope(|_| job())
+    let span = tracing::Span::current();
+    rayon::scope(|_| span.in_scope(job))
 }
 
 /// Processes one scan: the one entry point the CLI and the daemon share. The result lands in

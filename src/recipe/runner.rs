@@ -133,7 +133,10 @@ fn measure_and_draw(
     textures: TextureCache,
 ) -> (Value, Option<Preview>) {
     let measure = || reference.measure_with(mesh, &mut textures.clone());
-    let draw = || draw_preview(recipe, mesh, reference, stages, &mut textures.clone());
+    // Drawn on whichever thread is free: under the job's span, so its log line names the job.
+    let span = tracing::Span::current();
+    let draw =
+        || span.in_scope(|| draw_preview(recipe, mesh, reference, stages, &mut textures.clone()));
     if reference.has_topology() {
         rayon::join(measure, draw)
     } else {
