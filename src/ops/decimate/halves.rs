@@ -336,9 +336,12 @@ pub fn run(mesh: &Mesh, params: &DecimateParams, target: usize) -> Option<(Mesh,
         let (out, report) = decimate_input(half, &half_params(share)).ok()?;
         Some((out, report, faces, scale))
     };
+    // The second half may run on another thread: under the step's span, so that its log
+    // lines name the step (and the daemon's job) as the first half's do.
+    let span = tracing::Span::current();
     let (a, b) = rayon::join(
         || one_half(true, stage / 2),
-        || one_half(false, stage - stage / 2),
+        || span.in_scope(|| one_half(false, stage - stage / 2)),
     );
     let ((a, ra, fa, sa), (b, rb, fb, sb)) = (a?, b?);
     let halves = HalvesReport {
