@@ -30,6 +30,7 @@
 //! where the surface is cut or creased, and a vertex moved off it would open a gap between
 //! texture charts.
 
+use super::PIECE;
 use super::corners::{Corners, NIL, VKind};
 use super::ops::fan_keeps_orientation;
 use super::walk;
@@ -75,6 +76,7 @@ pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> (FitReport, Vec<u3
     for _ in 0..ROUNDS {
         let moved: Vec<DVec3> = fitted
             .par_iter()
+            .with_max_len(PIECE)
             .zip(&anchors)
             .map(|(&v, &anchor)| step(c, &feet, v, anchor))
             .collect();
@@ -99,6 +101,7 @@ pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> (FitReport, Vec<u3
 fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<(Option<DVec3>, u32)> {
     (0..c.face_count())
         .into_par_iter()
+        .with_max_len(PIECE)
         .map(|f| {
             if c.face_dead[f] {
                 return (None, NIL);

@@ -9,6 +9,7 @@
 //! compute every vertex from the previous positions in parallel, so the result does not
 //! depend on the thread count.
 
+use super::PIECE;
 use super::corners::{Corners, NIL, VKind, next, prev};
 use super::fit::{self, FitReport};
 use super::lines::Lines;
@@ -401,6 +402,7 @@ pub fn flip_angles(c: &mut Corners) -> usize {
 pub fn relax(c: &mut Corners, lines: &Lines, sizing: &Sizing, before: &Placement) {
     c.pos = (0..c.pos.len() as u32)
         .into_par_iter()
+        .with_max_len(PIECE)
         .map_init(Scratch::default, |sc, v| relaxed(c, lines, sizing, v, sc))
         .collect();
     undo_turns(c, before);
@@ -470,6 +472,7 @@ fn put_back(
     loop {
         let picked: Vec<usize> = (0..c.face_count())
             .into_par_iter()
+            .with_max_len(PIECE)
             .filter(|&f| {
                 let v = [0, 1, 2].map(|i| c.vtx[3 * f + i] as usize);
                 !c.face_dead[f] && v.iter().any(|&v| before.moved(c, v)) && bad(c, f, v)
@@ -563,6 +566,7 @@ const LINE_MOVE_QUALITY: f64 = 0.2;
 pub fn project(c: &mut Corners, input: &Input) {
     let new: Vec<(DVec3, u32, u32)> = (0..c.pos.len() as u32)
         .into_par_iter()
+        .with_max_len(PIECE)
         .map(|v| projected(c, input, v))
         .collect();
     for (v, (p, seg, tri)) in new.into_iter().enumerate() {

@@ -29,6 +29,7 @@
 //! lengths face against the closest one), no placement of the few corners nearby agrees
 //! with every closest triangle.
 
+use super::PIECE;
 use super::build;
 use super::corners::{Corners, NIL, VKind, prev};
 use super::export::Live;
@@ -161,6 +162,7 @@ const DEGENERATE_WEIGHT: usize = 1 << 16;
 fn turned_faces(c: &Corners, input: &Input, under: Option<&[u32]>) -> Vec<usize> {
     (0..c.face_count())
         .into_par_iter()
+        .with_max_len(PIECE)
         .filter(|&f| {
             let hint = match under.and_then(|u| u.get(f)) {
                 Some(&t) if t != NIL => t,
