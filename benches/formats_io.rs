@@ -100,10 +100,4 @@ fn bench(c: &mut Criterion) {
 }
 
 criterion_group!(benches, bench);
-fn main() {
-    // On a thread of rayon's pool, as `scanmill process` runs a job.
-    scanmill::process::on_pool(benches);
-    criterion::Criterion::default()
-        .configure_from_args()
-        .final_summary();
-}
+scanmill::criterion_main_on_pool!(benches);

@@ -227,13 +227,31 @@ fn hash_input(path: &Path) -> Result<FileHash, MeshError> {
 /// thread of the pool, it begins on that thread at once and needs only the other threads to
 /// wake. The remesher runs dozens of short parallel loops between sequential passes: on the
 /// two-core workstation its step on james took 68 ms from outside the pool and 55 ms on it
-/// (docs/remeshing.md, "The second core comes late"). Jobs and benchmarks run on it.
+/// (docs/remeshing.md, "The job on a thread of the pool"). Jobs, `scanmill compare` and the
+/// benches ([`criterion_main_on_pool`](crate::criterion_main_on_pool)) run on it.
 ///
 /// The caller's tracing span is entered on the pool's thread too, so that the job's log
 /// lines still name it (the daemon's worker process names its job there).
 pub fn on_pool<R: Send>(job: impl FnOnce() -> R + Send) -> R {
     let span = tracing::Span::current();
     rayon::scope(|_| span.in_scope(job))
+}
+
+/// `criterion_main!` for the benches, with the benchmark groups run on a thread of rayon's
+/// pool as a job runs ([`on_pool`]), so that their times are a job's. Expands to the bench's
+/// `main`; the bench crate provides `criterion`.
+#[macro_export]
+macro_rules! criterion_main_on_pool {
+    ($($group:path),+ $(,)?) => {
+        fn main() {
+            $crate::process::on_pool(|| {
+                $($group();)+
+            });
+            criterion::Criterion::default()
+                .configure_from_args()
+                .final_summary();
+        }
+    };
 }
 
 /// Processes one scan: the one entry point the CLI and the daemon share. The result lands in
