@@ -484,13 +484,20 @@ pub fn remesh_with(
             limit: MAX_OUTPUT_FACES,
         });
     }
-    let topo = Topology::new(mesh);
-    let field = size_field(mesh, &topo, params, l, adaptive.as_ref(), area)?;
+    // The search tree reads only the input: built beside the rest of the set-up.
+    let (bvh, setup) = rayon::join(
+        || TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect()),
+        || {
+            let topo = Topology::new(mesh);
+            let field = size_field(mesh, &topo, params, l, adaptive.as_ref(), area)?;
+            let lines = Lines::new(mesh, &topo, params.feature_angle);
+            let c = build::build(mesh, &topo, &lines);
+            Ok::<_, RemeshError>((topo, field, lines, c))
+        },
+    );
+    let (topo, field, lines, mut c) = setup?;
     let mut sizing = field.sizing;
-    let lines = Lines::new(mesh, &topo, params.feature_angle);
-    let mut c = build::build(mesh, &topo, &lines);
     let chart_of_input = c.chart.clone();
-    let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
     let input = isotropic::Input {
         mesh,
         topo: &topo,
