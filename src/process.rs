@@ -265,88 +265,69 @@ pub fn process_scan_with_options(
     progress: &dyn Progress,
 ) -> Result<Report, ProcessError> {
     on_pool(|| {
-        process_scan_on_pool(
-            input,
-            process_options,
-            recipe,
-            recipe_path,
-            out_dir,
-            progress,
-        )
-    })
-}
+        let total_start = Instant::now();
+        let total_stages = recipe.steps.len() + 2 + usize::from(recipe.preview.enabled);
 
-/// [`process_scan_with_options`]' body, on a thread of the pool.
-fn process_scan_on_pool(
-    input: &Path,
-    process_options: &ProcessOptions,
-    recipe: &Recipe,
-    recipe_path: Option<&Path>,
-    out_dir: &Path,
-    progress: &dyn Progress,
-) -> Result<Report, ProcessError> {
-    let total_start = Instant::now();
-    let total_stages = recipe.steps.len() + 2 + usize::from(recipe.preview.enabled);
-
-    progress.stage(0, total_stages, "load");
-    let load_start = Instant::now();
-    let Loaded {
-        mut mesh,
-        report: load_report,
-        files: input_files,
-    } = load_input(input, process_options, recipe)?;
-    let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
-    let input_counts = MeshCounts::of(&mesh);
-    tracing::info!(input = %crate::text::escape_path(input), faces = input_counts.faces, load_ms, "loaded");
-
-    // The steps, then the final metrics against the input and the preview (a clone of the
-    // input is kept while the steps run, unless the recipe wants neither).
-    let RunOutcome {
-        steps,
-        metrics,
-        preview,
-    } = run_recipe(
-        recipe,
-        &mut mesh,
-        &process_options.limits,
-        progress,
-        1,
-        total_stages,
-    )
-    .map_err(|source| ProcessError::Step {
-        input: input.to_path_buf(),
-        source,
-    })?;
-
-    progress.stage(total_stages - 1, total_stages, "write");
-    let write_start = Instant::now();
-    let (output_files, preview) = write_outputs(&mesh, recipe, input, out_dir, preview)?;
-    let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
-
-    Ok(Report {
-        scanmill_version: env!("CARGO_PKG_VERSION").to_string(),
-        input: InputReport {
-            path: input.to_path_buf(),
-            content_hash: combined_hash(&input_files),
+        progress.stage(0, total_stages, "load");
+        let load_start = Instant::now();
+        let Loaded {
+            mut mesh,
+            report: load_report,
             files: input_files,
-            counts: input_counts,
-            load: load_report,
-        },
-        recipe: RecipeReport {
-            path: recipe_path.map(Path::to_path_buf),
-            hash: recipe.hash(),
-            resolved: recipe.resolved_json(),
-        },
-        steps,
-        metrics,
-        output: OutputReport {
-            files: output_files,
-            counts: MeshCounts::of(&mesh),
-        },
-        preview,
-        load_ms,
-        write_ms,
-        total_ms: total_start.elapsed().as_secs_f64() * 1e3,
+        } = load_input(input, process_options, recipe)?;
+        let load_ms = load_start.elapsed().as_secs_f64() * 1e3;
+        let input_counts = MeshCounts::of(&mesh);
+        tracing::info!(input = %crate::text::escape_path(input), faces = input_counts.faces, load_ms, "loaded");
+
+        // The steps, then the final metrics against the input and the preview (a clone of the
+        // input is kept while the steps run, unless the recipe wants neither).
+        let RunOutcome {
+            steps,
+            metrics,
+            preview,
+        } = run_recipe(
+            recipe,
+            &mut mesh,
+            &process_options.limits,
+            progress,
+            1,
+            total_stages,
+        )
+        .map_err(|source| ProcessError::Step {
+            input: input.to_path_buf(),
+            source,
+        })?;
+
+        progress.stage(total_stages - 1, total_stages, "write");
+        let write_start = Instant::now();
+        let (output_files, preview) = write_outputs(&mesh, recipe, input, out_dir, preview)?;
+        let write_ms = write_start.elapsed().as_secs_f64() * 1e3;
+
+        Ok(Report {
+            scanmill_version: env!("CARGO_PKG_VERSION").to_string(),
+            input: InputReport {
+                path: input.to_path_buf(),
+                content_hash: combined_hash(&input_files),
+                files: input_files,
+                counts: input_counts,
+                load: load_report,
+            },
+            recipe: RecipeReport {
+                path: recipe_path.map(Path::to_path_buf),
+                hash: recipe.hash(),
+                resolved: recipe.resolved_json(),
+            },
+            steps,
+            metrics,
+            output: OutputReport {
+                files: output_files,
+                counts: MeshCounts::of(&mesh),
+            },
+            preview,
+            load_ms,
+            write_ms,
+            total_ms: total_start.elapsed().as_secs_f64() * 1e3,
+        })
     })
 }
 
