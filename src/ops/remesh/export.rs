@@ -14,10 +14,10 @@
 
 use super::corners::{Corners, NIL, VKind};
 use super::lines::Lines;
-use super::walk;
+use super::walk::{self, Sheet};
 use crate::geom::bvh::TriangleBvh;
 use crate::geom::closest_on_triangle;
-use crate::mesh::topology::Topology;
+
 use crate::mesh::{Index, Mesh, Wedge};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -37,7 +37,7 @@ const SAME_UV: f64 = 1e-6;
 /// chart), built on first use: most searches end in a walk from a triangle of the chart.
 struct ChartIndex<'a> {
     input: &'a Mesh,
-    topo: &'a Topology,
+    sheet: &'a Sheet<'a>,
     chart_of_input: &'a [u32],
     slot: HashMap<u32, usize>,
     members: Vec<Vec<u32>>,
@@ -46,12 +46,7 @@ struct ChartIndex<'a> {
 }
 
 impl<'a> ChartIndex<'a> {
-    fn new(
-        input: &'a Mesh,
-        topo: &'a Topology,
-        chart_of_input: &'a [u32],
-        whole: &'a TriangleBvh<'a>,
-    ) -> Self {
+    fn new(sheet: &'a Sheet<'a>, chart_of_input: &'a [u32], whole: &'a TriangleBvh<'a>) -> Self {
         let mut slot = HashMap::new();
         let mut members: Vec<Vec<u32>> = Vec::new();
         for (t, &ch) in chart_of_input.iter().enumerate() {
@@ -62,8 +57,8 @@ impl<'a> ChartIndex<'a> {
             members[k].push(t as u32);
         }
         ChartIndex {
-            input,
-            topo,
+            input: sheet.mesh,
+            sheet,
             chart_of_input,
             slot,
             bvhs: members.iter().map(|_| OnceLock::new()).collect(),
@@ -88,7 +83,7 @@ impl<'a> ChartIndex<'a> {
             return self.tree(chart)?.closest(p, None).map(|h| h.triangle);
         }
         let within = |t: u32| self.chart_of_input[t as usize] == chart;
-        let foot = walk::walk(self.input, self.topo, hint, p, within);
+        let foot = walk::walk(self.sheet, hint, p, within);
         if foot.settled {
             return Some(foot.triangle);
         }
@@ -152,14 +147,14 @@ impl Live {
 pub fn export(
     c: &Corners,
     lines: &Lines,
-    input: &Mesh,
-    topo: &Topology,
+    sheet: &Sheet,
     chart_of_input: &[u32],
     bvh: &TriangleBvh,
 ) -> Mesh {
+    let input = sheet.mesh;
     let live = Live::of(c);
     let faces = &live.faces;
-    let charts = ChartIndex::new(input, topo, chart_of_input, bvh);
+    let charts = ChartIndex::new(sheet, chart_of_input, bvh);
     let mut uvs = corner_uvs(c, lines, input, &charts, faces);
     if let Some(uvs) = &mut uvs {
         agree_along_lines(c, faces, uvs);
@@ -185,7 +180,7 @@ pub fn export(
     let face_charts: Vec<u32> = faces.iter().map(|&f| c.chart[f]).collect();
     out.triangle_origins = origins(&out, &charts, &face_charts, &hints);
     if !input.colors.is_empty() {
-        out.colors = colours(&out, input, topo, bvh, &hints);
+        out.colors = colours(&out, sheet, bvh, &hints);
     }
     out
 }
@@ -435,18 +430,13 @@ fn origins(out: &Mesh, charts: &ChartIndex, face_charts: &[u32], hints: &[u32]) 
 }
 
 /// Per-vertex colours interpolated at each output vertex's closest input point.
-fn colours(
-    out: &Mesh,
-    input: &Mesh,
-    topo: &Topology,
-    bvh: &TriangleBvh,
-    hints: &[u32],
-) -> Vec<[u8; 4]> {
+fn colours(out: &Mesh, sheet: &Sheet, bvh: &TriangleBvh, hints: &[u32]) -> Vec<[u8; 4]> {
+    let input = sheet.mesh;
     out.positions
         .par_iter()
         .zip(hints.par_iter())
         .map(|(&p, &hint)| {
-            let Some(foot) = walk::walk_or_search(input, topo, bvh, hint, p, |_| true) else {
+            let Some(foot) = walk::walk_or_search(sheet, bvh, hint, p, |_| true) else {
                 return [255; 4];
             };
             let vs = input.triangle_vertices(foot.triangle as usize);

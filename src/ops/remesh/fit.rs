@@ -33,9 +33,7 @@
 use super::PIECE;
 use super::corners::{Corners, NIL, VKind};
 use super::ops::fan_keeps_orientation;
-use super::walk;
-use crate::mesh::Mesh;
-use crate::mesh::topology::Topology;
+use super::walk::{self, Sheet};
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -60,12 +58,12 @@ const ANCHOR: f64 = 0.5;
 /// left out.
 const OUTLIER: f64 = 0.25;
 
-/// Fits the free vertices of `c`, projected onto `input` (whose topology is `topo`).
+/// Fits the free vertices of `c`, projected onto the input (`sheet`).
 /// Returns, beside the report, the input triangle each face's centroid was found closest
 /// to before the fit ([`NIL`] for a dead face): the vertices moved by a small fraction of
 /// an edge since, so it is a close start for a later search from the same centroid.
-pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> (FitReport, Vec<u32>) {
-    let (feet, under): (Vec<Option<DVec3>>, Vec<u32>) = feet(c, input, topo).into_iter().unzip();
+pub fn fit(c: &mut Corners, sheet: &Sheet) -> (FitReport, Vec<u32>) {
+    let (feet, under): (Vec<Option<DVec3>>, Vec<u32>) = feet(c, sheet).into_iter().unzip();
     let fitted: Vec<u32> = (0..c.pos.len() as u32)
         .filter(|&v| {
             let i = v as usize;
@@ -98,7 +96,7 @@ pub fn fit(c: &mut Corners, input: &Mesh, topo: &Topology) -> (FitReport, Vec<u3
 
 /// The closest input point of every live face's centroid (`None` for a dead face or a
 /// centroid left out), and the input triangle it is on ([`NIL`] for a dead face).
-fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<(Option<DVec3>, u32)> {
+fn feet(c: &Corners, sheet: &Sheet) -> Vec<(Option<DVec3>, u32)> {
     (0..c.face_count())
         .into_par_iter()
         .with_max_len(PIECE)
@@ -113,7 +111,7 @@ fn feet(c: &Corners, input: &Mesh, topo: &Topology) -> Vec<(Option<DVec3>, u32)>
             let s = (p[0] + p[1] + p[2]) / 3.0;
             // Every vertex has the input triangle it was last projected onto (or, for an
             // input vertex never moved, one of its own).
-            let foot = walk::walk(input, topo, c.vtri[c.vtx[3 * f] as usize], s, |_| true);
+            let foot = walk::walk(sheet, c.vtri[c.vtx[3 * f] as usize], s, |_| true);
             let kept = foot.point.distance(s) <= OUTLIER * longest;
             (kept.then_some(foot.point), foot.triangle)
         })

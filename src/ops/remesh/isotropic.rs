@@ -16,10 +16,10 @@ use super::lines::Lines;
 use super::ops::{self, Scratch};
 use super::repair::{self, Repairs};
 use super::sizing::Sizing;
-use super::walk;
+use super::walk::{self, Sheet};
 use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
-use crate::mesh::topology::Topology;
+
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -604,7 +604,7 @@ fn projected(c: &Corners, input: &Input, v: u32) -> (DVec3, u32, u32) {
 /// The input as the passes see it: the mesh, its topology, its search tree and its lines.
 pub struct Input<'a> {
     pub mesh: &'a Mesh,
-    pub topo: &'a Topology,
+    pub sheet: &'a Sheet<'a>,
     pub bvh: &'a TriangleBvh<'a>,
     pub lines: &'a Lines,
 }
@@ -612,7 +612,7 @@ pub struct Input<'a> {
 impl Input<'_> {
     /// The closest point of the input to `p` near input triangle `tri` (see [`project`]).
     fn closest_near(&self, p: DVec3, tri: u32) -> Option<walk::Foot> {
-        walk::walk_or_search(self.mesh, self.topo, self.bvh, tri, p, |_| true)
+        walk::walk_or_search(self.sheet, self.bvh, tri, p, |_| true)
     }
 }
 
@@ -627,7 +627,7 @@ pub fn run(
 ) -> Counts {
     let Input {
         mesh,
-        topo,
+        sheet,
         bvh,
         lines,
     } = *input;
@@ -645,7 +645,7 @@ pub fn run(
         counts.angle_flips += flip_angles(c);
     }
     let under = fit.then(|| {
-        let (report, under) = fit::fit(c, mesh, topo);
+        let (report, under) = fit::fit(c, sheet);
         counts.fit = report;
         under
     });
@@ -748,7 +748,7 @@ mod tests {
         let mesh = crate::mesh::load(std::path::Path::new(path), &options)
             .unwrap_or_else(|e| panic!("{path}: {e}"))
             .0;
-        let topo = Topology::new(&mesh);
+        let topo = crate::mesh::topology::Topology::new(&mesh);
         let lines = Lines::new(&mesh, &topo, None);
         let mut fast = super::super::build::build(&mesh, &topo, &lines);
         assert!(fast.locked.iter().any(|&l| l));

@@ -489,18 +489,21 @@ pub fn remesh_with(
         || TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect()),
         || {
             let topo = Topology::new(mesh);
-            let field = size_field(mesh, &topo, params, l, adaptive.as_ref(), area)?;
-            let lines = Lines::new(mesh, &topo, params.feature_angle);
-            let c = build::build(mesh, &topo, &lines);
-            Ok::<_, RemeshError>((topo, field, lines, c))
+            let (sheet, rest) = walk::Sheet::new_beside(mesh, topo, |topo| {
+                let field = size_field(mesh, topo, params, l, adaptive.as_ref(), area)?;
+                let lines = Lines::new(mesh, topo, params.feature_angle);
+                let c = build::build(mesh, topo, &lines);
+                Ok::<_, RemeshError>((field, lines, c))
+            });
+            Ok::<_, RemeshError>((sheet, rest?))
         },
     );
-    let (topo, field, lines, mut c) = setup?;
+    let (sheet, (field, lines, mut c)) = setup?;
     let mut sizing = field.sizing;
     let chart_of_input = c.chart.clone();
     let input = isotropic::Input {
         mesh,
-        topo: &topo,
+        sheet: &sheet,
         bvh: &bvh,
         lines: &lines,
     };
@@ -511,7 +514,7 @@ pub fn remesh_with(
         params.iterations,
         !params.on_surface,
     );
-    let mut out = export::export(&c, &lines, mesh, &topo, &chart_of_input, &bvh);
+    let mut out = export::export(&c, &lines, &sheet, &chart_of_input, &bvh);
     let bake = params.bake_texture.then(|| {
         let source = crate::ops::bake::Source { mesh, bvh: &bvh };
         crate::ops::bake::bake(&mut out, &source, textures)
