@@ -96,9 +96,10 @@ fn loop_shape(pts: &[DVec3]) -> Loop {
 fn check_borders(rel: &str) {
     let input = load(rel);
     let topo: Topology = input.topology();
-    let normals = guards::triangle_normals(&input, &input.positions);
+    let triangles = guards::triangle_vertices(&input);
+    let normals = guards::triangle_normals(&triangles, &input.positions);
     let references =
-        guards::triangle_references(&input, &input.positions, |v| topo.is_boundary_vertex(v));
+        guards::triangle_references(&triangles, &input.positions, |v| topo.is_boundary_vertex(v));
     let mut m = input.clone();
     let (r, f) = relax_and_fair(&mut m);
     // Neither step turns a triangle over from its own input.
@@ -108,7 +109,7 @@ fn check_borders(rel: &str) {
     // reconstructions, a few triangles that relax turned by up to 45° and fair by up to
     // 90° more (20 of 36,000 on the Angel; none on james).
     let folds = |t: usize| normals[t].dot(references[t].around.as_dvec3()) < 0.0;
-    let final_normals = guards::triangle_normals(&m, &m.positions);
+    let final_normals = guards::triangle_normals(&triangles, &m.positions);
     let turned: Vec<usize> = (0..normals.len())
         .filter(|&t| final_normals[t].dot(normals[t]) < 0.0)
         .collect();

@@ -265,7 +265,8 @@ mod tests {
             max_iterations: 200,
             ..PhaseParams::curve()
         };
-        let normals = super::super::guards::triangle_references(&m, &m.positions, |v| {
+        let triangles = super::super::guards::triangle_vertices(&m);
+        let normals = super::super::guards::triangle_references(&triangles, &m.positions, |v| {
             topo.is_boundary_vertex(v)
         });
         let stats = fair_boundary_curve(
@@ -280,8 +281,8 @@ mod tests {
         assert!(stats.iterations > 0);
         assert_eq!(
             super::super::guards::turned_over(
-                &m,
-                &super::super::guards::triangle_normals(&m, &before),
+                &triangles,
+                &super::super::guards::triangle_normals(&triangles, &before),
                 &m.positions
             ),
             0

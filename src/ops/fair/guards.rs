@@ -289,12 +289,22 @@ impl GuardCounts {
     }
 }
 
-/// Every triangle's normal (cross product) at `positions`.
-pub fn triangle_normals(mesh: &Mesh, positions: &[DVec3]) -> Vec<DVec3> {
+/// Every triangle's vertices (indices of the mesh's positions), the table the fairing
+/// reads triangles from: one indirection less than the mesh's wedges, made once per step.
+pub fn triangle_vertices(mesh: &Mesh) -> Vec<[u32; 3]> {
     (0..mesh.triangles.len())
         .into_par_iter()
-        .map(|t| {
-            let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
+        .map(|t| mesh.triangle_vertices(t))
+        .collect()
+}
+
+/// Every triangle's normal (cross product) at `positions`; `triangles` from
+/// [`triangle_vertices`].
+pub fn triangle_normals(triangles: &[[u32; 3]], positions: &[DVec3]) -> Vec<DVec3> {
+    triangles
+        .par_iter()
+        .map(|tri| {
+            let [a, b, c] = tri.map(|v| positions[v as usize]);
             (b - a).cross(c - a)
         })
         .collect()
@@ -312,26 +322,26 @@ pub fn triangle_normals(mesh: &Mesh, positions: &[DVec3]) -> Vec<DVec3> {
 /// surroundings move little from step to step, and a triangle tilted by noise still faces
 /// their side.
 pub fn triangle_references(
-    mesh: &Mesh,
+    triangles: &[[u32; 3]],
     positions: &[DVec3],
     is_border: impl Fn(u32) -> bool + Sync,
 ) -> Vec<Reference> {
-    let normals = triangle_normals(mesh, positions);
+    let normals = triangle_normals(triangles, positions);
     let mut at_vertex = vec![DVec3::ZERO; positions.len()];
-    for (t, n) in normals.iter().enumerate() {
-        for v in mesh.triangle_vertices(t) {
+    for (tri, n) in triangles.iter().zip(&normals) {
+        for &v in tri {
             at_vertex[v as usize] += *n;
         }
     }
     // The sums per vertex stay sequential (their order is their rounding); the rest is
     // per triangle.
-    (0..mesh.triangles.len())
-        .into_par_iter()
-        .map(|t| {
-            let vs = mesh.triangle_vertices(t);
+    triangles
+        .par_iter()
+        .zip(&normals)
+        .map(|(&vs, &own)| {
             Reference::new(
                 vs.into_iter().map(|v| at_vertex[v as usize]).sum(),
-                normals[t],
+                own,
                 vs.into_iter().any(&is_border),
             )
         })
@@ -339,12 +349,12 @@ pub fn triangle_references(
 }
 
 /// Triangles whose normal ends more than 90° from `references` (e.g. the input normals).
-pub fn turned_over(mesh: &Mesh, references: &[DVec3], positions: &[DVec3]) -> usize {
-    references
-        .iter()
-        .enumerate()
-        .filter(|&(t, r)| {
-            let [a, b, c] = mesh.triangle_vertices(t).map(|v| positions[v as usize]);
+pub fn turned_over(triangles: &[[u32; 3]], references: &[DVec3], positions: &[DVec3]) -> usize {
+    triangles
+        .par_iter()
+        .zip(references)
+        .filter(|&(tri, r)| {
+            let [a, b, c] = tri.map(|v| positions[v as usize]);
             r.length_squared() > 0.0 && (b - a).cross(c - a).dot(*r) < 0.0
         })
         .count()

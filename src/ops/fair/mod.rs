@@ -413,8 +413,9 @@ pub fn run_with(
     if !positive(scale) {
         return (report, Some(connectivity));
     }
-    let fixed = fixed_vertices(mesh, nb, plan, &mut topo, &mut report);
-    let references = guards::triangle_references(mesh, &input, |v| {
+    let triangles = guards::triangle_vertices(mesh);
+    let fixed = fixed_vertices(mesh, &triangles, nb, plan, &mut topo, &mut report);
+    let references = guards::triangle_references(&triangles, &input, |v| {
         plan.tangential || (nb.is_manifold(v as usize) && !nb.is_closed(v as usize))
     });
     let mut positions = std::mem::take(&mut mesh.positions);
@@ -422,6 +423,7 @@ pub fn run_with(
     let sweep = Sweep {
         nb,
         plan,
+        triangles: &triangles,
         references: &references,
         fixed: &fixed,
     };
@@ -435,7 +437,6 @@ pub fn run_with(
     // what the sweeps use (a 400k-triangle scan's is ~40 MB).
     drop(topo);
     let (stats, interior_movable) = sweep.fair_interior(
-        mesh,
         &input,
         scale,
         &mut positions,
@@ -444,7 +445,15 @@ pub fn run_with(
     );
     mesh.positions = positions;
     report.movable_vertices = border_movable + interior_movable;
-    finish_report(&mut report, mesh, &input, &stats, &guard_counts, start);
+    finish_report(
+        &mut report,
+        mesh,
+        &triangles,
+        &input,
+        &stats,
+        &guard_counts,
+        start,
+    );
     tracing::debug!(?report, "fairing done");
     (report, Some(connectivity))
 }
@@ -453,6 +462,7 @@ pub fn run_with(
 /// creases (with a feature angle) and high-valence hubs with their 1-ring.
 fn fixed_vertices(
     mesh: &Mesh,
+    triangles: &[[u32; 3]],
     nb: &Neighbourhood,
     plan: &Plan,
     topo: &mut Option<Topology>,
@@ -461,8 +471,8 @@ fn fixed_vertices(
     let n = mesh.positions.len();
     let mut fixed = vec![false; n];
     let mut used = vec![false; n];
-    for t in 0..mesh.triangles.len() {
-        for v in mesh.triangle_vertices(t) {
+    for tri in triangles {
+        for &v in tri {
             used[v as usize] = true;
         }
     }
@@ -510,6 +520,8 @@ fn fixed_vertices(
 struct Sweep<'a> {
     nb: &'a Neighbourhood,
     plan: &'a Plan,
+    /// Every triangle's vertices ([`guards::triangle_vertices`]).
+    triangles: &'a [[u32; 3]],
     references: &'a [guards::Reference],
     fixed: &'a [bool],
 }
@@ -564,7 +576,6 @@ impl Sweep<'_> {
     /// many interior vertices could move.
     fn fair_interior(
         &self,
-        mesh: &Mesh,
         input: &[DVec3],
         scale: f64,
         positions: &mut [DVec3],
@@ -576,14 +587,11 @@ impl Sweep<'_> {
             .map(|v| nb.is_closed(v) && !self.fixed[v])
             .collect();
         let movable_count = movable.iter().filter(|&&m| m).count();
-        let triangles: Vec<[u32; 3]> = (0..mesh.triangles.len())
-            .map(|t| mesh.triangle_vertices(t))
-            .collect();
         let interior = surface::Interior {
             nb,
             movable: &movable,
             movable_count,
-            triangles: &triangles,
+            triangles: self.triangles,
             references: self.references,
             eps: plan.epsilon / scale,
             input: plan.tangential.then_some(input),
@@ -633,6 +641,7 @@ impl Sweep<'_> {
 fn finish_report(
     report: &mut FairReport,
     mesh: &Mesh,
+    triangles: &[[u32; 3]],
     input: &[DVec3],
     stats: &RunStats,
     guard_counts: &GuardCounts,
@@ -653,8 +662,8 @@ fn finish_report(
     report.flips_avoided = guard_counts.flips_avoided;
     report.degenerate_avoided = guard_counts.degenerate_avoided;
     report.moves_skipped = guard_counts.skipped;
-    let input_normals = guards::triangle_normals(mesh, input);
-    report.flipped_vs_input = guards::turned_over(mesh, &input_normals, &mesh.positions);
+    let input_normals = guards::triangle_normals(triangles, input);
+    report.flipped_vs_input = guards::turned_over(triangles, &input_normals, &mesh.positions);
     let secs = start.elapsed().as_secs_f64();
     report.time_ms = secs * 1e3;
     report.updates_per_second = if secs > 0.0 {
