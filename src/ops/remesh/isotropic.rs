@@ -16,10 +16,10 @@ use super::lines::Lines;
 use super::ops::{self, Scratch};
 use super::repair::{self, Repairs};
 use super::sizing::Sizing;
+use super::slivers::{self, Slivers};
 use super::walk::{self, Sheet};
 use crate::geom::bvh::TriangleBvh;
 use crate::mesh::Mesh;
-
 use glam::DVec3;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -35,8 +35,10 @@ pub struct Counts {
     /// The least-squares fit of the free vertices to the input ([`fit`]; zeros with
     /// `on_surface`).
     pub fit: FitReport,
-    /// The last pass: faces turned against the input, and their repair ([`repair`]).
+    /// Faces turned against the input, and their repair ([`repair`]).
     pub turned: Repairs,
+    /// The last pass: slivers with three free corners ([`slivers`]).
+    pub slivers: Slivers,
 }
 
 /// At most this many collapse sweeps per iteration: a dense input needs several to come
@@ -617,7 +619,8 @@ impl Input<'_> {
 }
 
 /// Runs `iterations` rounds towards the edge lengths of `sizing`, then, with `fit`, fits
-/// the free vertices to the input, and last repairs faces turned against it.
+/// the free vertices to the input, repairs faces turned against it, and last mends the
+/// slivers away from lines that are left ([`slivers`]).
 pub fn run(
     c: &mut Corners,
     input: &Input,
@@ -650,6 +653,8 @@ pub fn run(
         under
     });
     counts.turned = repair::repair(c, lines, bvh, mesh, &mut sc, under.as_deref());
+    let input = repair::Input { bvh, mesh, lines };
+    counts.slivers = slivers::clean(c, &input, sizing, &mut sc);
     counts
 }
 

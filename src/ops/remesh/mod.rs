@@ -18,6 +18,7 @@ pub mod patches;
 pub mod quality;
 pub mod repair;
 pub mod sizing;
+pub mod slivers;
 #[cfg(test)]
 mod tests;
 pub mod walk;

@@ -101,10 +101,11 @@ fn input_under(bvh: &TriangleBvh, p: [DVec3; 3], hint: u32) -> u32 {
     input_hit(bvh, p, hint).1.triangle
 }
 
-struct Input<'a> {
-    bvh: &'a TriangleBvh<'a>,
-    mesh: &'a Mesh,
-    lines: &'a Lines,
+/// The input as the pass reads it (also the sliver clean-up's, [`super::slivers`]).
+pub(super) struct Input<'a> {
+    pub(super) bvh: &'a TriangleBvh<'a>,
+    pub(super) mesh: &'a Mesh,
+    pub(super) lines: &'a Lines,
 }
 
 impl Input<'_> {
@@ -130,14 +131,14 @@ impl Input<'_> {
         self.agrees(c.face_positions(f), face_hint(c, f))
     }
 
-    fn face_badness(&self, c: &Corners, f: usize) -> usize {
+    pub(super) fn face_badness(&self, c: &Corners, f: usize) -> usize {
         self.badness(c.face_positions(f), face_hint(c, f))
     }
 
     /// How much a face with corners `p` counts against a repair: 0 when it agrees, 1 when
     /// it is turned, [`DEGENERATE_WEIGHT`] when it has no area. A repair must lower the sum
     /// over the faces it changes, so it never trades turned faces for a degenerate one.
-    fn badness(&self, p: [DVec3; 3], hint: u32) -> usize {
+    pub(super) fn badness(&self, p: [DVec3; 3], hint: u32) -> usize {
         if ops::degenerate(p) {
             DEGENERATE_WEIGHT
         } else {
@@ -251,7 +252,7 @@ pub fn repair(
 
 /// The live faces with a corner at or next to one of the live vertices `changed`, in index
 /// order.
-fn faces_near(c: &Corners, changed: &[u32], hs: &mut Vec<u32>) -> Vec<usize> {
+pub(super) fn faces_near(c: &Corners, changed: &[u32], hs: &mut Vec<u32>) -> Vec<usize> {
     let mut ring = Vec::new();
     let mut near = Vec::new();
     for &v in changed {

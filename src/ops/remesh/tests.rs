@@ -620,3 +620,64 @@ fn bake_texture_is_isotropic_only() {
     let e = patches.validate().unwrap_err();
     assert!(e.contains("bake_texture"), "{e}");
 }
+
+/// The sliver pass on a flat grid (its own input) with vertex `v` moved to `to`, at a
+/// uniform size `l`: what it did, and the working mesh after it.
+fn slivers_cleaned(v: usize, to: glam::DVec3, l: f64) -> (slivers::Slivers, Corners) {
+    let mesh = shapes::grid(6, 6);
+    let (mut c, lines) = working(&mesh);
+    c.pos[v] = to;
+    let bvh = crate::geom::bvh::TriangleBvh::new(&mesh, (0..mesh.triangles.len() as u32).collect());
+    let input = repair::Input {
+        bvh: &bvh,
+        mesh: &mesh,
+        lines: &lines,
+    };
+    let sizing = sizing::Sizing::uniform(l);
+    let r = slivers::clean(&mut c, &input, &sizing, &mut ops::Scratch::default());
+    c.check().unwrap();
+    (r, c)
+}
+
+/// The smallest angle of the live faces, and whether they all still face +z (the input's
+/// way).
+fn smallest_and_facing(c: &Corners) -> (f64, bool) {
+    let live = (0..c.face_count()).filter(|&f| !c.face_dead[f]);
+    let smallest = live
+        .clone()
+        .map(|f| quality::min_angle(c.face_positions(f)))
+        .fold(f64::INFINITY, f64::min);
+    (smallest, live.into_iter().all(|f| c.face_cross(f).z > 0.0))
+}
+
+/// A needle (an inner vertex 0.05 from its right-hand neighbour) is collapsed; a cap (an
+/// inner vertex close to the middle of its neighbours' edge) is flipped; both leave no face
+/// under 10°, none turned, the table whole.
+#[test]
+fn slivers_inside_are_collapsed_or_flipped() {
+    let v = 3 * 7 + 3;
+    let (r, c) = slivers_cleaned(v, glam::DVec3::new(3.95, 3.0, 0.0), 2.0);
+    assert!(r.found > 0 && r.collapses > 0 && r.left == 0, "{r:?}");
+    let (smallest, facing) = smallest_and_facing(&c);
+    assert!(
+        smallest >= slivers::SLIVER_ANGLE && facing,
+        "{smallest} {r:?}"
+    );
+    // The face (3,3) (4,3) (4,4) with its corner (3,3) near the middle of (4,3)–(4,4).
+    let (r, c) = slivers_cleaned(v, glam::DVec3::new(3.95, 3.5, 0.0), 1.0);
+    assert!(r.found > 0 && r.flips > 0 && r.left == 0, "{r:?}");
+    let (smallest, facing) = smallest_and_facing(&c);
+    assert!(
+        smallest >= slivers::SLIVER_ANGLE && facing,
+        "{smallest} {r:?}"
+    );
+}
+
+/// A sliver with a corner on the border is left: a border vertex may not leave its line.
+#[test]
+fn slivers_at_a_border_are_left() {
+    // (1,0) on the bottom border, pulled up close to its neighbour (1,1).
+    let (r, c) = slivers_cleaned(1, glam::DVec3::new(1.0, 0.9, 0.0), 2.0);
+    assert_eq!(r, slivers::Slivers::default());
+    assert!(smallest_and_facing(&c).0 < slivers::SLIVER_ANGLE);
+}
