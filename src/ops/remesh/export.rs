@@ -17,7 +17,6 @@ use super::lines::Lines;
 use super::walk::{self, Sheet};
 use crate::geom::bvh::TriangleBvh;
 use crate::geom::closest_on_triangle;
-
 use crate::mesh::{Index, Mesh, Wedge};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
