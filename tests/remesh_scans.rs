@@ -305,6 +305,27 @@ fn photogrammetry_atlas_without_zero_area_faces() {
     );
 }
 
+/// The coral adaptive at 1 %: the repair pass splits edges there, and the sliver pass after
+/// it reads the sizes of the new vertices (it once read past the size field and panicked).
+#[test]
+fn photogrammetry_atlas_adaptive() {
+    let rel = "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz";
+    let mesh = common::scan(rel);
+    let params = RemeshParams {
+        adaptive: true,
+        ..params()
+    };
+    let (out, report) = remesh(&mesh, &params).unwrap_or_else(|e| panic!("{rel}: {e}"));
+    out.check_invariants().unwrap();
+    assert!(
+        report.counts.turned.splits > 0,
+        "{:?}",
+        report.counts.turned
+    );
+    let slivers = report.counts.slivers;
+    assert!(slivers.left <= slivers.found, "{slivers:?}");
+}
+
 /// The esp32cam scan (Meshroom: a raw photogrammetry atlas, ragged borders) at 1 %: the
 /// same checks. It had 16 seam vertices off the input's seams before line vertices moved
 /// along their lines only.

@@ -654,6 +654,7 @@ pub fn run(
     });
     counts.turned = repair::repair(c, lines, bvh, mesh, &mut sc, under.as_deref());
     let input = repair::Input { bvh, mesh, lines };
+    sizing.cover(c);
     counts.slivers = slivers::clean(c, &input, sizing, &mut sc);
     counts
 }

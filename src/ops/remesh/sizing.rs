@@ -130,6 +130,32 @@ impl Sizing {
         }
     }
 
+    /// Gives a size to every vertex made since the field last grew: the repair pass splits
+    /// edges without one (it runs after the rounds, which are the field's readers, and for
+    /// `patches` without a field), and the sliver pass after it reads sizes again. A new
+    /// vertex takes the mean size of its neighbours that have one (a split's two ends among
+    /// them, whose mean [`Sizing::split`] would have given), or the input's mean size.
+    pub fn cover(&mut self, c: &Corners) {
+        let Sizing::Adaptive { input, size } = self else {
+            return;
+        };
+        let mut ring = Vec::new();
+        for v in size.len() as u32..c.pos.len() as u32 {
+            c.ring(v, &mut ring);
+            let known: Vec<f64> = ring
+                .iter()
+                .filter(|&&u| (u as usize) < size.len())
+                .map(|&u| size[u as usize])
+                .collect();
+            let s = if known.is_empty() {
+                input.iter().sum::<f64>() / input.len().max(1) as f64
+            } else {
+                known.iter().sum::<f64>() / known.len() as f64
+            };
+            size.push(s);
+        }
+    }
+
     /// After projection: every moving vertex takes the input's size where it now lies (a
     /// free vertex on its input triangle, a line vertex on its segment).
     pub fn follow(&mut self, c: &Corners, lines: &Lines, mesh: &Mesh) {
