@@ -137,12 +137,18 @@ impl<'a> PreparedReference<'a> {
         // [`compare_prepared`]: its full form is ~40 MB for a 400k-triangle scan, and the
         // preparation runs beside the decimation, which is the memory peak of the face-scan
         // recipe (issue #8's budget).
-        let index = surface::SurfaceIndex::new(reference, "reference")?;
-        let samples = surface::sample_surface(
-            reference,
-            options.samples,
-            distance::reference_seed(options.seed),
+        // The index (parallel) beside the samples (one thread): neither reads the other.
+        let (index, samples) = rayon::join(
+            || surface::SurfaceIndex::new(reference, "reference"),
+            || {
+                surface::sample_surface(
+                    reference,
+                    options.samples,
+                    distance::reference_seed(options.seed),
+                )
+            },
         );
+        let index = index?;
         Ok(PreparedReference {
             options: *options,
             index,
@@ -215,16 +221,27 @@ pub fn compare_prepared(
         },
         || distance::vertex_deviation(result, reference),
     );
-    let result_index = surface::SurfaceIndex::new(result, "result")?;
-    let on_result = surface::sample_surface(result, options.samples, options.seed);
-    let to_reference = surface::counterparts(result, reference);
+    // The result's index, its samples and the hints each way, side by side.
+    let ((result_index, on_result), (to_reference, to_result)) = rayon::join(
+        || {
+            rayon::join(
+                || surface::SurfaceIndex::new(result, "result"),
+                || surface::sample_surface(result, options.samples, options.seed),
+            )
+        },
+        || {
+            rayon::join(
+                || surface::counterparts(result, reference),
+                || surface::counterparts(reference, result),
+            )
+        },
+    );
+    let result_index = result_index?;
     let forward = prepared
         .index
         .closest_to_samples(&on_result, to_reference.as_deref());
-    let backward = result_index.closest_to_samples(
-        &prepared.samples,
-        surface::counterparts(reference, result).as_deref(),
-    );
+    let backward = result_index.closest_to_samples(&prepared.samples, to_result.as_deref());
+    drop(to_result);
     drop(result_index);
     let distance = distance::from_queries(&forward, &backward, reference, options.seed);
     let normals = normals::angular_deviation_with(result, &prepared.index, to_reference.as_deref());
