@@ -603,7 +603,8 @@ fn projected(c: &Corners, input: &Input, v: u32) -> (DVec3, u32, u32) {
     }
 }
 
-/// The input as the passes see it: the mesh, its topology, its search tree and its lines.
+/// The input as the passes see it: the mesh, its sheet (its topology and the walks' flat
+/// tables, [`Sheet`]), its search tree and its lines.
 pub struct Input<'a> {
     pub mesh: &'a Mesh,
     pub sheet: &'a Sheet<'a>,
@@ -653,9 +654,9 @@ pub fn run(
         under
     });
     counts.turned = repair::repair(c, lines, bvh, mesh, &mut sc, under.as_deref());
-    let input = repair::Input { bvh, mesh, lines };
+    let against = repair::Input { bvh, mesh, lines };
     sizing.cover(c);
-    counts.slivers = slivers::clean(c, &input, sizing, &mut sc);
+    counts.slivers = slivers::clean(c, &against, sizing, &mut sc);
     counts
 }
 
