@@ -186,68 +186,75 @@ pub fn repair(
     under: Option<&[u32]>,
 ) -> Repairs {
     let input = Input { bvh, mesh, lines };
-    let mut turned = turned_faces(c, &input, under);
-    let mut r = Repairs {
-        turned: turned.len(),
-        ..Repairs::default()
-    };
+    let turned = turned_faces(c, &input, under);
     let mut pass = Pass {
         input,
         sc,
         hs: Vec::new(),
         moved: Vec::new(),
+        r: Repairs {
+            turned: turned.len(),
+            ..Repairs::default()
+        },
     };
-    // Faces still turned that no change has come near since they were last tried.
-    let mut waiting: Vec<usize> = Vec::new();
-    for _ in 0..MAX_ROUNDS {
-        pass.moved.clear();
-        for &f in &turned {
-            if c.face_dead[f] || pass.input.face_agrees(c, f) {
-                continue;
-            }
-            // The near moves and the collapses first: they keep the faces' shapes best;
-            // the far moves and the splits only where those fail.
-            if pass.try_flips(c, f) {
-                r.flips += 1;
-            } else if pass.try_moves(c, f, Reach::Near) {
-                r.moves += 1;
-            } else if pass.try_collapses(c, f) {
-                r.collapses += 1;
-            } else if pass.try_moves(c, f, Reach::Far) {
-                r.moves += 1;
-            } else if pass.try_splits(c, f) {
-                r.splits += 1;
-            }
-        }
-        if pass.moved.is_empty() {
-            break;
-        }
-        // What a repair of face f tries depends on the corners of f and their neighbours
-        // only, and a try that fails changes nothing: so a face with no corner next to a
-        // change would fail again. The next round takes the faces turned among those near a
-        // change; the others wait, and are tried again once a change comes near them.
-        let near = faces_near(c, &pass.moved, &mut pass.hs);
-        waiting.extend(turned.iter().filter(|f| near.binary_search(f).is_err()));
-        turned = near
-            .into_iter()
-            .filter(|&f| !c.face_dead[f] && !pass.input.face_agrees(c, f))
-            .collect();
-        if turned.is_empty() {
-            break;
-        }
-    }
-    // Waiting faces a later change came near were taken again (and are in `turned` if still
-    // turned); the rest are as they were.
-    turned.extend(waiting);
-    turned.sort_unstable();
-    turned.dedup();
-    turned.retain(|&f| !c.face_dead[f] && !pass.input.face_agrees(c, f));
-    r.left = turned.len();
-    r.left_unmovable = turned
+    let left = mend_in_rounds(&mut pass, c, turned, MAX_ROUNDS);
+    let mut r = pass.r;
+    r.left = left.len();
+    r.left_unmovable = left
         .iter()
         .filter(|&&f| (0..3).all(|i| !movable(c, c.vtx[3 * f + i])))
         .count();
     r
+}
+
+/// A pass that mends faces one at a time ([`mend_in_rounds`]): the repair of turned faces
+/// here, the sliver pass ([`super::slivers`]).
+pub(super) trait Mending {
+    /// Face `f` (live or dead) still needs mending.
+    fn needs(&self, c: &Corners, f: usize) -> bool;
+    /// Tries to mend face `f`. A try that fails changes nothing; one that succeeds puts the
+    /// vertices whose faces it changed into [`Mending::changed`]'s list.
+    fn try_face(&mut self, c: &mut Corners, f: usize);
+    /// The vertices changed this round, and a scratch list for [`faces_near`].
+    fn changed(&mut self) -> (&mut Vec<u32>, &mut Vec<u32>);
+}
+
+/// Tries to mend each of `faces` that still needs it, in index order, in at most
+/// `max_rounds` rounds, and returns those that still need it, in index order.
+///
+/// What a try on face f reads is the corners of f and their neighbours only, and a try that
+/// fails changes nothing: so a face with no corner next to a change would fail again. The
+/// next round takes the faces that need mending among those near a change; the others wait,
+/// and are tried again once a change comes near them.
+pub(super) fn mend_in_rounds(
+    m: &mut impl Mending,
+    c: &mut Corners,
+    mut faces: Vec<usize>,
+    max_rounds: usize,
+) -> Vec<usize> {
+    let mut waiting: Vec<usize> = Vec::new();
+    for _ in 0..max_rounds {
+        m.changed().0.clear();
+        for &f in &faces {
+            if m.needs(c, f) {
+                m.try_face(c, f);
+            }
+        }
+        let (changed, hs) = m.changed();
+        if changed.is_empty() {
+            break;
+        }
+        let near = faces_near(c, changed, hs);
+        waiting.extend(faces.iter().filter(|f| near.binary_search(f).is_err()));
+        faces = near.into_iter().filter(|&f| m.needs(c, f)).collect();
+    }
+    // Waiting faces a later change came near were taken again (and are in `faces` if they
+    // still need it); the rest are as they were.
+    faces.extend(waiting);
+    faces.sort_unstable();
+    faces.dedup();
+    faces.retain(|&f| m.needs(c, f));
+    faces
 }
 
 /// The live faces with a corner at or next to one of the live vertices `changed`, in index
@@ -313,6 +320,33 @@ struct Pass<'a> {
     hs: Vec<u32>,
     /// Vertices whose faces a repair of this round changed.
     moved: Vec<u32>,
+    r: Repairs,
+}
+
+impl Mending for Pass<'_> {
+    fn needs(&self, c: &Corners, f: usize) -> bool {
+        !c.face_dead[f] && !self.input.face_agrees(c, f)
+    }
+
+    /// The near moves and the collapses first: they keep the faces' shapes best; the far
+    /// moves and the splits only where those fail.
+    fn try_face(&mut self, c: &mut Corners, f: usize) {
+        if self.try_flips(c, f) {
+            self.r.flips += 1;
+        } else if self.try_moves(c, f, Reach::Near) {
+            self.r.moves += 1;
+        } else if self.try_collapses(c, f) {
+            self.r.collapses += 1;
+        } else if self.try_moves(c, f, Reach::Far) {
+            self.r.moves += 1;
+        } else if self.try_splits(c, f) {
+            self.r.splits += 1;
+        }
+    }
+
+    fn changed(&mut self) -> (&mut Vec<u32>, &mut Vec<u32>) {
+        (&mut self.moved, &mut self.hs)
+    }
 }
 
 impl Pass<'_> {

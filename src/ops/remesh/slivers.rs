@@ -38,7 +38,7 @@ use super::PIECE;
 use super::corners::{Corners, NIL, VKind, prev};
 use super::ops::{self, Scratch};
 use super::quality::min_angle;
-use super::repair::{Input, faces_near};
+use super::repair::{Input, Mending, mend_in_rounds};
 use super::sizing::Sizing;
 use crate::geom::bvh::TriangleHit;
 use glam::DVec3;
@@ -101,51 +101,27 @@ fn smallest(faces: &[[DVec3; 3]]) -> f64 {
 
 /// Runs the pass (see the module's documentation).
 pub(super) fn clean(c: &mut Corners, input: &Input, sizing: &Sizing, sc: &mut Scratch) -> Slivers {
-    let mut found: Vec<usize> = (0..c.face_count())
+    let found: Vec<usize> = (0..c.face_count())
         .into_par_iter()
         .with_max_len(PIECE)
         .filter(|&f| is_sliver(c, f))
         .collect();
-    let mut r = Slivers {
-        found: found.len(),
-        ..Slivers::default()
-    };
     let mut pass = Pass {
         input,
         sizing,
         sc,
         hs: Vec::new(),
         changed: Vec::new(),
+        r: Slivers {
+            found: found.len(),
+            ..Slivers::default()
+        },
     };
-    // Faces still thin that no change has come near since they were last tried: a try
-    // reads only the face's corners and their rings, and a failed try changes nothing.
-    let mut waiting: Vec<usize> = Vec::new();
-    for _ in 0..MAX_ROUNDS {
-        pass.changed.clear();
-        for &f in &found {
-            if !is_sliver(c, f) {
-                continue;
-            }
-            if pass.try_flips(c, f) {
-                r.flips += 1;
-            } else if pass.try_collapse(c, f) {
-                r.collapses += 1;
-            } else if pass.try_moves(c, f) {
-                r.moves += 1;
-            }
-        }
-        if pass.changed.is_empty() {
-            break;
-        }
-        let near = faces_near(c, &pass.changed, &mut pass.hs);
-        waiting.extend(found.iter().filter(|f| near.binary_search(f).is_err()));
-        found = near.into_iter().filter(|&f| is_sliver(c, f)).collect();
+    let left = mend_in_rounds(&mut pass, c, found, MAX_ROUNDS);
+    Slivers {
+        left: left.len(),
+        ..pass.r
     }
-    found.extend(waiting);
-    found.sort_unstable();
-    found.dedup();
-    r.left = found.into_iter().filter(|&f| is_sliver(c, f)).count();
-    r
 }
 
 /// One pass's working state.
@@ -156,6 +132,27 @@ struct Pass<'a> {
     hs: Vec<u32>,
     /// Vertices whose faces a remedy of this round changed.
     changed: Vec<u32>,
+    r: Slivers,
+}
+
+impl Mending for Pass<'_> {
+    fn needs(&self, c: &Corners, f: usize) -> bool {
+        is_sliver(c, f)
+    }
+
+    fn try_face(&mut self, c: &mut Corners, f: usize) {
+        if self.try_flips(c, f) {
+            self.r.flips += 1;
+        } else if self.try_collapse(c, f) {
+            self.r.collapses += 1;
+        } else if self.try_moves(c, f) {
+            self.r.moves += 1;
+        }
+    }
+
+    fn changed(&mut self) -> (&mut Vec<u32>, &mut Vec<u32>) {
+        (&mut self.changed, &mut self.hs)
+    }
 }
 
 /// Faces as they were before a change: their corners and how much they disagreed with the
