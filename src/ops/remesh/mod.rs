@@ -485,16 +485,26 @@ pub fn remesh_with(
             limit: MAX_OUTPUT_FACES,
         });
     }
-    // The search tree reads only the input: built beside the rest of the set-up.
-    let (bvh, setup) = rayon::join(
-        || TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect()),
+    // The search tree and the input's angles read only the input: made beside the rest of
+    // the set-up, which is longer.
+    let ((bvh, quality_before), setup) = rayon::join(
+        || {
+            let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
+            (bvh, AngleQuality::of(mesh))
+        },
         || {
             let topo = Topology::new(mesh);
             let (sheet, rest) = walk::Sheet::new_beside(mesh, topo, |topo| {
-                let field = size_field(mesh, topo, params, l, adaptive.as_ref(), area)?;
-                let lines = Lines::new(mesh, topo, params.feature_angle);
-                let c = build::build(mesh, topo, &lines);
-                Ok::<_, RemeshError>((field, lines, c))
+                // The size field reads neither the lines nor the corner table.
+                let (field, (lines, c)) = rayon::join(
+                    || size_field(mesh, topo, params, l, adaptive.as_ref(), area),
+                    || {
+                        let lines = Lines::new(mesh, topo, params.feature_angle);
+                        let c = build::build(mesh, topo, &lines);
+                        (lines, c)
+                    },
+                );
+                Ok::<_, RemeshError>((field?, lines, c))
             });
             Ok::<_, RemeshError>((sheet, rest?))
         },
@@ -533,7 +543,7 @@ pub fn remesh_with(
             non_manifold: lines.count(LineKind::NonManifold),
         },
         locked_vertices: c.locked.iter().filter(|&&l| l).count(),
-        quality_before: AngleQuality::of(mesh),
+        quality_before,
         quality_after: AngleQuality::of(&out),
         seconds: start.elapsed().as_secs_f64(),
         sizing: field.report,

@@ -100,7 +100,7 @@ pub fn can_collapse(
     // The length bound first: one ring walk, and it rejects most candidates.
     let pb = c.pos[b as usize];
     if c.neighbours(a)
-        .any(|x| x != b && c.pos[x as usize].distance(pb) > sizing.hi(x, b))
+        .any(|x| x != b && c.pos[x as usize].distance_squared(pb) > sizing.hi(x, b).powi(2))
     {
         return false;
     }

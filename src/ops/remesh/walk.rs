@@ -308,7 +308,10 @@ mod tests {
                 }
             }
         }
-        assert!(ruled_out > clearly_farther / 2, "{ruled_out} of {clearly_farther}");
+        assert!(
+            ruled_out > clearly_farther / 2,
+            "{ruled_out} of {clearly_farther}"
+        );
     }
 
     #[test]
