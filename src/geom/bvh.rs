@@ -12,6 +12,7 @@
 //! [`closest_on_triangle`]) and deterministic: the tree does not depend on the thread count,
 //! and the traversal order (nearer child first) only depends on the tree and the query.
 
+use crate::geom::closest::Plane;
 use crate::geom::closest_on_triangle;
 use crate::mesh::Mesh;
 use glam::DVec3;
@@ -38,7 +39,8 @@ const MAX_DEPTH: usize = 64;
 pub struct QueryCost {
     /// Nodes visited, inner and leaf.
     pub nodes: u32,
-    /// Triangles whose closest point was computed.
+    /// Triangles whose closest point was computed (not those their plane ruled out,
+    /// [`TriangleBvh::with_planes`]).
     pub triangles: u32,
 }
 
@@ -124,6 +126,9 @@ pub struct TriangleBvh<'a> {
     order: Vec<u32>,
     /// The triangles' vertex indices in leaf order (one indirection less per test).
     corners: Vec<[u32; 3]>,
+    /// The triangles' planes in leaf order, when asked for ([`TriangleBvh::with_planes`]);
+    /// empty otherwise.
+    planes: Vec<Plane>,
     /// Nodes one search may visit.
     budget: u32,
     /// Searches that stopped at the budget.
@@ -181,10 +186,28 @@ impl<'a> TriangleBvh<'a> {
             nodes,
             order,
             corners,
+            planes: Vec::new(),
             budget: BUDGET_PER_LEVEL * levels,
             cut_short: AtomicU64::new(0),
             tie: TIE_FRACTION * diagonal,
         }
+    }
+
+    /// [`TriangleBvh::new`], with each triangle's plane kept beside it (32 bytes per
+    /// triangle): a search then computes the closest point only of the leaf triangles
+    /// whose plane is nearer than the best so far ([`Plane::farther_than`]), with the same
+    /// answers. For a tree that answers many queries near its surface with a close first
+    /// guess (the remesher's: on james a search tests 7 triangles, and the guess is the
+    /// answer for 97 % of them); the metrics' and the fairing's trees, over 400,000-triangle
+    /// scans, keep their memory instead (the whole face-scan run measured no faster).
+    pub fn with_planes(mesh: &'a Mesh, triangles: Vec<u32>) -> TriangleBvh<'a> {
+        let mut tree = TriangleBvh::new(mesh, triangles);
+        tree.planes = tree
+            .corners
+            .par_iter()
+            .map(|t| Plane::of(t.map(|v| mesh.positions[v as usize])))
+            .collect();
+        tree
     }
 
     pub fn is_empty(&self) -> bool {
@@ -196,6 +219,7 @@ impl<'a> TriangleBvh<'a> {
         self.nodes.capacity() * std::mem::size_of::<Node>()
             + self.order.capacity() * 4
             + self.corners.capacity() * 12
+            + self.planes.capacity() * std::mem::size_of::<Plane>()
     }
 
     /// The closest point of the indexed surface to `p`. `start`, if given, is a candidate
@@ -251,8 +275,15 @@ impl<'a> TriangleBvh<'a> {
             let n = &self.nodes[node as usize];
             if n.count > 0 {
                 let first = n.first as usize;
-                cost.triangles += n.count;
                 for i in first..first + n.count as usize {
+                    if self
+                        .planes
+                        .get(i)
+                        .is_some_and(|t| t.farther_than(p, best_d2))
+                    {
+                        continue;
+                    }
+                    cost.triangles += 1;
                     let hit = self.leaf_hit(i, p);
                     if hit.distance_squared < best_d2 {
                         best_d2 = hit.distance_squared;
@@ -799,6 +830,42 @@ mod tests {
     /// unless two triangles are exactly as near (then `Tied`, and they are). On the grid,
     /// points straight above its vertices and edges make such ties; at random points there
     /// are none.
+    /// The planes change which triangles a search computes, never its answer: the same
+    /// triangle, point and distance for points off and on the surface, with and without a
+    /// first guess.
+    #[test]
+    fn planes_change_no_answer() {
+        let mut mesh = uv_sphere(1.0, 24, 40);
+        let mut r = rng(5);
+        for p in mesh.positions.iter_mut() {
+            *p *= 1.0 + 0.05 * r.random::<f64>();
+        }
+        let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+        let plain = TriangleBvh::new(&mesh, all.clone());
+        let planes = TriangleBvh::with_planes(&mesh, all);
+        let (mut tested_plain, mut tested_planes) = (0, 0);
+        for i in 0..4000 {
+            let t = r.random_range(0..mesh.triangles.len());
+            let [a, b, c] = mesh.triangle_positions(t);
+            let on = (a + b + c) / 3.0;
+            let p = match i % 3 {
+                0 => on,
+                1 => on * (1.0 + 0.01 * r.random::<f64>()),
+                _ => DVec3::new(r.random(), r.random(), r.random()) * 3.0 - 1.5,
+            };
+            let start = (i % 2 == 0).then(|| plain.hit_on(p, t as u32));
+            let (x, y) = (plain.search(p, start), planes.search(p, start));
+            assert_eq!(x.hit, y.hit, "{p}");
+            tested_plain += x.cost.triangles;
+            tested_planes += y.cost.triangles;
+        }
+        // Many leaf triangles are ruled out by their plane (a third here).
+        assert!(
+            4 * tested_planes < 3 * tested_plain,
+            "{tested_planes} of {tested_plain}"
+        );
+    }
+
     #[test]
     fn closest_among_a_neighbourhood_is_the_tree_search() {
         let mesh = grid(9, 9);

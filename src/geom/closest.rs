@@ -1,4 +1,5 @@
-//! The point of a triangle closest to a point, and a point's distance to a segment.
+//! The point of a triangle closest to a point, a lower bound of that distance (the
+//! triangle's plane), and a point's distance to a segment.
 
 use glam::DVec3;
 
@@ -61,6 +62,37 @@ pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DV
     (a + ab * v + ac * w, DVec3::new(1.0 - v - w, v, w))
 }
 
+/// A triangle's plane: unit normal and offset (a zero normal for a triangle without area).
+#[derive(Debug, Clone, Copy)]
+pub struct Plane {
+    normal: DVec3,
+    offset: f64,
+}
+
+impl Plane {
+    pub fn of([a, b, c]: [DVec3; 3]) -> Plane {
+        let normal = (b - a).cross(c - a).normalize_or_zero();
+        Plane {
+            normal,
+            offset: normal.dot(a),
+        }
+    }
+
+    /// Every point of the triangle is farther from `q` than `sqrt(d2)`: its plane is, by a
+    /// margin far above the rounding of either distance. The distance to the plane is a
+    /// lower bound of the distance to the triangle, so a search that skips such a
+    /// triangle chooses what it chose when it computed the triangle's closest point
+    /// ([`closest_on_triangle`] costs about three times this test).
+    /// The margin is absolute (relative to the coordinates' size): a point on the surface
+    /// has a distance near zero, where a relative margin would cover nothing.
+    #[inline]
+    pub fn farther_than(&self, q: DVec3, d2: f64) -> bool {
+        let rounding = 1e-12 * (q.abs().element_sum() + self.offset.abs());
+        let e = (self.normal.dot(q) - self.offset).abs() - rounding;
+        e > 0.0 && e * e > d2
+    }
+}
+
 /// The point of the segment `a b` closest to `p` (`a` when `a == b`).
 pub fn closest_on_segment(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
     let ab = b - a;
@@ -79,8 +111,48 @@ pub fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::closest_on_triangle;
+    use super::{Plane, closest_on_triangle};
+    use crate::metrics::surface::rng;
     use glam::DVec3;
+    use rand::RngExt;
+
+    /// The plane test never rules out a triangle nearer than the bound, points on the
+    /// triangle's own plane included (where the distance is zero up to rounding), and rules
+    /// out most of those clearly farther.
+    #[test]
+    fn plane_rules_out_only_farther_triangles() {
+        let mut r = rng(11);
+        let mut ruled_out = 0;
+        let mut clearly_farther = 0;
+        for i in 0..20_000 {
+            let mut point = || {
+                DVec3::new(
+                    r.random_range(90.0..110.0),
+                    r.random_range(-110.0..-90.0),
+                    r.random_range(-5.0..5.0),
+                )
+            };
+            let t = [point(), point(), point()];
+            let on_plane = t[0] + 0.3 * (t[1] - t[0]) + 0.5 * (t[2] - t[0]);
+            let q = if i % 2 == 0 { point() } else { on_plane };
+            let (p, _) = closest_on_triangle(q, t[0], t[1], t[2]);
+            let d2 = p.distance_squared(q);
+            let plane = Plane::of(t);
+            for bound in [0.0, 0.5 * d2, d2, 2.0 * d2, 1e-30] {
+                if plane.farther_than(q, bound) {
+                    assert!(d2 > bound, "{t:?} {q:?} {bound}");
+                    ruled_out += 1;
+                }
+                if (plane.normal.dot(q) - plane.offset).powi(2) > 1.01 * bound + 1e-6 {
+                    clearly_farther += 1;
+                }
+            }
+        }
+        assert!(
+            ruled_out > clearly_farther / 2,
+            "{ruled_out} of {clearly_farther}"
+        );
+    }
 
     #[test]
     fn regions_and_the_degenerate_rule() {

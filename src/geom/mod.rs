@@ -1,7 +1,8 @@
 //! Geometric and measuring primitives that several parts of the crate share (steps,
 //! metrics, benches): one copy of each.
 //!
-//! - [`closest`]: the point of a triangle closest to a point, the distance to a segment;
+//! - [`closest`]: the point of a triangle closest to a point, a triangle's plane as a lower bound
+//!   of that distance, the distance to a segment;
 //! - [`timing`]: the process's CPU time.
 //!
 //! - [`bvh`]: the closest-point index over a mesh's triangles (metrics, preview, `seam_fix`,

@@ -489,8 +489,8 @@ pub fn remesh_with(
     // the set-up, which is longer.
     let ((bvh, quality_before), setup) = rayon::join(
         || {
-            let bvh = TriangleBvh::new(mesh, (0..mesh.triangles.len() as u32).collect());
-            (bvh, AngleQuality::of(mesh))
+            let all = (0..mesh.triangles.len() as u32).collect();
+            (TriangleBvh::with_planes(mesh, all), AngleQuality::of(mesh))
         },
         || {
             let topo = Topology::new(mesh);

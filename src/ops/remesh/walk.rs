@@ -4,7 +4,7 @@
 
 use super::corners::NIL;
 use crate::geom::bvh::TriangleBvh;
-use crate::geom::closest::closest_on_triangle;
+use crate::geom::closest::{Plane, closest_on_triangle};
 use crate::mesh::Mesh;
 use crate::mesh::topology::{NO_EDGE, Topology};
 use glam::DVec3;
@@ -42,36 +42,6 @@ pub struct Sheet<'a> {
     /// triangles (read from the topology then).
     across: Vec<[u32; 3]>,
     planes: Vec<Plane>,
-}
-
-/// A triangle's plane: unit normal and offset (a zero normal for a triangle without area).
-#[derive(Clone, Copy)]
-struct Plane {
-    normal: DVec3,
-    offset: f64,
-}
-
-impl Plane {
-    fn of([a, b, c]: [DVec3; 3]) -> Plane {
-        let normal = (b - a).cross(c - a).normalize_or_zero();
-        Plane {
-            normal,
-            offset: normal.dot(a),
-        }
-    }
-
-    /// Every point of the triangle is farther from `q` than `sqrt(d2)`: its plane is, by a
-    /// margin far above the rounding of either distance. The distance to the plane is a
-    /// lower bound of the distance to the triangle, so a walk step that skips such a
-    /// neighbour chooses what it chose when it computed the neighbour's closest point.
-    /// The margin is absolute (relative to the coordinates' size): a point on the surface
-    /// has a distance near zero, where a relative margin would cover nothing.
-    #[inline]
-    fn farther_than(&self, q: DVec3, d2: f64) -> bool {
-        let rounding = 1e-12 * (q.abs().element_sum() + self.offset.abs());
-        let e = (self.normal.dot(q) - self.offset).abs() - rounding;
-        e > 0.0 && e * e > d2
-    }
 }
 
 /// [`Sheet::across`] of a side whose edge has more than two triangles.
@@ -237,8 +207,6 @@ mod tests {
     use super::*;
     use crate::mesh::Wedge;
     use crate::mesh::shapes::grid;
-    use crate::metrics::surface::rng;
-    use rand::RngExt;
 
     fn sheet_of(mesh: &Mesh) -> Sheet<'_> {
         Sheet::new_beside(mesh, Topology::new(mesh), |_| ()).0
@@ -276,44 +244,6 @@ mod tests {
 
     /// Three triangles on one edge: the tables mark the edge, and the walk reads the
     /// topology there and goes on to the third triangle, folded up over the first two.
-    /// The plane test never rules out a triangle nearer than the bound, points on the
-    /// triangle's own plane included (where the distance is zero up to rounding), and rules
-    /// out most of those clearly farther.
-    #[test]
-    fn plane_rules_out_only_farther_triangles() {
-        let mut r = rng(11);
-        let mut ruled_out = 0;
-        let mut clearly_farther = 0;
-        for i in 0..20_000 {
-            let mut point = || {
-                DVec3::new(
-                    r.random_range(90.0..110.0),
-                    r.random_range(-110.0..-90.0),
-                    r.random_range(-5.0..5.0),
-                )
-            };
-            let t = [point(), point(), point()];
-            let on_plane = t[0] + 0.3 * (t[1] - t[0]) + 0.5 * (t[2] - t[0]);
-            let q = if i % 2 == 0 { point() } else { on_plane };
-            let (p, _) = closest_on_triangle(q, t[0], t[1], t[2]);
-            let d2 = p.distance_squared(q);
-            let plane = Plane::of(t);
-            for bound in [0.0, 0.5 * d2, d2, 2.0 * d2, 1e-30] {
-                if plane.farther_than(q, bound) {
-                    assert!(d2 > bound, "{t:?} {q:?} {bound}");
-                    ruled_out += 1;
-                }
-                if (plane.normal.dot(q) - plane.offset).powi(2) > 1.01 * bound + 1e-6 {
-                    clearly_farther += 1;
-                }
-            }
-        }
-        assert!(
-            ruled_out > clearly_farther / 2,
-            "{ruled_out} of {clearly_farther}"
-        );
-    }
-
     #[test]
     fn walks_over_an_edge_with_three_triangles() {
         let positions = vec![
