@@ -163,12 +163,12 @@ pub fn export(
         materials: input.materials.clone(),
         ..Mesh::default()
     };
-    let mut wedges_at: Vec<Vec<Index>> = vec![Vec::new(); live.vertices.len()];
+    let mut wedges = Wedges::new(live.vertices.len());
     for (i, &f) in faces.iter().enumerate() {
         let vs = live.triangle(c, f);
         let tri = [0, 1, 2].map(|k| {
             let uv = uvs.as_ref().and_then(|u| u[i][k]);
-            wedge(&mut out, &mut wedges_at[vs[k] as usize], vs[k], uv)
+            wedges.of(&mut out, vs[k], uv)
         });
         out.triangles.push(tri);
     }
@@ -184,25 +184,53 @@ pub fn export(
     out
 }
 
-/// The wedge of vertex `v` with texture coordinate `uv`: an existing one of `v` within
-/// [`SAME_UV`], or a new one.
-fn wedge(out: &mut Mesh, known: &mut Vec<Index>, v: u32, uv: Option<DVec2>) -> Index {
-    let same = |w: &Index| same_uv(out.wedge_texcoord(*w), uv);
-    if let Some(&w) = known.iter().find(|w| same(w)) {
-        return w;
+/// The output's wedges of each vertex, in the order they were made: a vertex's first
+/// wedge, and after each wedge the next one of the same vertex (most vertices have one,
+/// a vertex on a seam one per chart), without a list per vertex.
+struct Wedges {
+    first: Vec<Index>,
+    next: Vec<Index>,
+}
+
+impl Wedges {
+    const NONE: Index = Index::MAX;
+
+    fn new(vertices: usize) -> Wedges {
+        Wedges {
+            first: vec![Self::NONE; vertices],
+            next: Vec::new(),
+        }
     }
-    let texcoord = uv.map(|p| {
-        out.texcoords.push(p);
-        (out.texcoords.len() - 1) as Index
-    });
-    out.wedges.push(Wedge {
-        vertex: v,
-        texcoord,
-        normal: None,
-    });
-    let w = (out.wedges.len() - 1) as Index;
-    known.push(w);
-    w
+
+    /// The wedge of vertex `v` with texture coordinate `uv`: the first of `v`'s within
+    /// [`SAME_UV`], or a new one.
+    fn of(&mut self, out: &mut Mesh, v: u32, uv: Option<DVec2>) -> Index {
+        let mut last = Self::NONE;
+        let mut w = self.first[v as usize];
+        while w != Self::NONE {
+            if same_uv(out.wedge_texcoord(w), uv) {
+                return w;
+            }
+            last = w;
+            w = self.next[w as usize];
+        }
+        let texcoord = uv.map(|p| {
+            out.texcoords.push(p);
+            (out.texcoords.len() - 1) as Index
+        });
+        out.wedges.push(Wedge {
+            vertex: v,
+            texcoord,
+            normal: None,
+        });
+        let w = (out.wedges.len() - 1) as Index;
+        self.next.push(Self::NONE);
+        match last {
+            Self::NONE => self.first[v as usize] = w,
+            _ => self.next[last as usize] = w,
+        }
+        w
+    }
 }
 
 type FaceUvs = Vec<[Option<DVec2>; 3]>;
@@ -222,6 +250,7 @@ fn corner_uvs(
     }
     let chart_of_input = charts.chart_of_input;
     let at_corners = corner_vertex_uvs(c, charts);
+    let at_free = free_vertex_uvs(c, charts);
     Some(
         faces
             .par_iter()
@@ -234,9 +263,7 @@ fn corner_uvs(
                     let hint = c.vtri[v];
                     let inside = p[k] + NUDGE * (centre - p[k]);
                     match c.kind[v] {
-                        VKind::Free if chart_of_input[hint as usize] == chart => {
-                            charts.uv_on(hint, p[k])
-                        }
+                        VKind::Free if chart_of_input[hint as usize] == chart => at_free[v],
                         VKind::Line if c.vseg[v] != NIL => {
                             let side =
                                 line_side(input, lines, c.vseg[v], chart, chart_of_input, inside);
@@ -255,6 +282,20 @@ fn corner_uvs(
             })
             .collect(),
     )
+}
+
+/// The texture coordinate of each live free vertex on the input triangle it was projected
+/// onto (`None` for other vertices): the coordinate of each of its corners whose face is in
+/// that triangle's chart, computed once for the six or so corners.
+fn free_vertex_uvs(c: &Corners, charts: &ChartIndex) -> Vec<Option<DVec2>> {
+    (0..c.pos.len())
+        .into_par_iter()
+        .map(|v| {
+            (c.kind[v] == VKind::Free && !c.vertex_dead[v])
+                .then(|| charts.uv_on(c.vtri[v], c.pos[v]))
+                .flatten()
+        })
+        .collect()
 }
 
 /// The texture coordinate of each corner at a `Corner` vertex (a line's end or a junction
