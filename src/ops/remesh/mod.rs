@@ -32,6 +32,7 @@ use quality::AngleQuality;
 use serde::{Deserialize, Serialize};
 use sizing::{Adaptive, Sizing, SizingReport};
 use std::time::Instant;
+use walk::Planes;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -485,16 +486,21 @@ pub fn remesh_with(
             limit: MAX_OUTPUT_FACES,
         });
     }
+    let planes = Planes::for_sizes(mesh.triangles.len(), faces_for(area, l));
     // The search tree and the input's angles read only the input: made beside the rest of
     // the set-up, which is longer.
     let ((bvh, quality_before), setup) = rayon::join(
         || {
             let all = (0..mesh.triangles.len() as u32).collect();
-            (TriangleBvh::with_planes(mesh, all), AngleQuality::of(mesh))
+            let bvh = match planes {
+                Planes::Kept => TriangleBvh::with_planes(mesh, all),
+                Planes::None => TriangleBvh::new(mesh, all),
+            };
+            (bvh, AngleQuality::of(mesh))
         },
         || {
             let topo = Topology::new(mesh);
-            let (sheet, rest) = walk::Sheet::new_beside(mesh, topo, |topo| {
+            let (sheet, rest) = walk::Sheet::new_beside(mesh, topo, planes, |topo| {
                 // The size field reads neither the lines nor the corner table.
                 let (field, (lines, c)) = rayon::join(
                     || size_field(mesh, topo, params, l, adaptive.as_ref(), area),

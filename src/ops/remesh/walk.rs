@@ -30,8 +30,9 @@ pub struct Foot {
 /// of its sides in two flat tables, so that a step reads one record per neighbour instead
 /// of going through the mesh's wedges and the topology's edge lists (the walks are the
 /// remesher's most frequent search: about 370,000 closest-point tests a run on james),
-/// and each triangle's plane, which rules most neighbours out before their closest point is
-/// computed ([`Plane::farther_than`]). 56 bytes per input triangle.
+/// 24 bytes per input triangle; and, when asked for, each triangle's plane, which rules
+/// most neighbours out before their closest point is computed ([`Plane::farther_than`]),
+/// 32 bytes more ([`Planes`]).
 pub struct Sheet<'a> {
     pub mesh: &'a Mesh,
     pub topo: Topology,
@@ -41,7 +42,33 @@ pub struct Sheet<'a> {
     /// edge, [`NIL`] where there is none (a border), [`MANY`] where the edge has more than two
     /// triangles (read from the topology then).
     across: Vec<[u32; 3]>,
+    /// Empty unless asked for.
     planes: Vec<Plane>,
+}
+
+/// Whether the walk's sheet and the remesher's search tree keep each input triangle's
+/// plane. They pay where the input's triangles are about as large as the result's or
+/// larger (james: 12,228 triangles remeshed into 18,955; the walks 49.9 → 48.7 ms, the
+/// repair's tree searches 5.2 → 4.2 ms) and cost where the input is much denser (igea:
+/// 269,000 into 24,800, 218 → 233 ms): there a walk crosses several small, nearly coplanar
+/// triangles, whose planes rarely rule one out, and the tables take their making and
+/// 64 bytes a triangle of cache room (docs/remeshing.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Planes {
+    Kept,
+    None,
+}
+
+impl Planes {
+    /// [`Planes::Kept`] when the input has no more triangles than the result is expected to
+    /// have faces.
+    pub fn for_sizes(input_triangles: usize, expected_faces: f64) -> Planes {
+        if input_triangles as f64 <= expected_faces {
+            Planes::Kept
+        } else {
+            Planes::None
+        }
+    }
 }
 
 /// [`Sheet::across`] of a side whose edge has more than two triangles.
@@ -53,10 +80,11 @@ impl<'a> Sheet<'a> {
     pub fn new_beside<R: Send>(
         mesh: &'a Mesh,
         topo: Topology,
+        planes: Planes,
         beside: impl FnOnce(&Topology) -> R + Send,
     ) -> (Self, R) {
         let ((vertices, across, planes), r) =
-            rayon::join(|| Self::tables(mesh, &topo), || beside(&topo));
+            rayon::join(|| Self::tables(mesh, &topo, planes), || beside(&topo));
         let sheet = Sheet {
             mesh,
             topo,
@@ -68,7 +96,11 @@ impl<'a> Sheet<'a> {
     }
 
     /// [`Sheet::vertices`], [`Sheet::across`] and [`Sheet::planes`].
-    fn tables(mesh: &Mesh, topo: &Topology) -> (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<Plane>) {
+    fn tables(
+        mesh: &Mesh,
+        topo: &Topology,
+        planes: Planes,
+    ) -> (Vec<[u32; 3]>, Vec<[u32; 3]>, Vec<Plane>) {
         let n = mesh.triangles.len();
         let vertices = (0..n)
             .into_par_iter()
@@ -90,10 +122,13 @@ impl<'a> Sheet<'a> {
                 })
             })
             .collect();
-        let planes = (0..n)
-            .into_par_iter()
-            .map(|t| Plane::of(mesh.triangle_positions(t)))
-            .collect();
+        let planes = match planes {
+            Planes::Kept => (0..n)
+                .into_par_iter()
+                .map(|t| Plane::of(mesh.triangle_positions(t)))
+                .collect(),
+            Planes::None => Vec::new(),
+        };
         (vertices, across, planes)
     }
 
@@ -124,7 +159,13 @@ pub fn walk(sheet: &Sheet, start: u32, q: DVec3, within: impl Fn(u32) -> bool) -
         // The closest candidate so far: distance², triangle, point, weights.
         let mut next = (best, NIL, foot, w);
         let consider = |u: u32, next: &mut (f64, u32, DVec3, DVec3)| {
-            if u != t && u != from && within(u) && !sheet.planes[u as usize].farther_than(q, next.0)
+            if u != t
+                && u != from
+                && within(u)
+                && !sheet
+                    .planes
+                    .get(u as usize)
+                    .is_some_and(|p| p.farther_than(q, next.0))
             {
                 let (d, p, wu) = on(u);
                 if d < next.0 {
@@ -209,7 +250,7 @@ mod tests {
     use crate::mesh::shapes::grid;
 
     fn sheet_of(mesh: &Mesh) -> Sheet<'_> {
-        Sheet::new_beside(mesh, Topology::new(mesh), |_| ()).0
+        Sheet::new_beside(mesh, Topology::new(mesh), Planes::Kept, |_| ()).0
     }
 
     /// The nearest triangle by testing every one, the first on a tie (as the walk keeps the
