@@ -6,6 +6,8 @@
 //! edge, the default tolerance and shortest edge), on the same scans.
 //! `isotropic james bake_texture` is James's case with the texture baked (`ops::bake`: 1.3 M
 //! texels of its 2400×1600 photo read from the input surface, and the PNG encoded).
+//! Each scan is numbered as `scanmill process` numbers it before the step: for locality
+//! (`Mesh::reorder_for_locality`) before `isotropic`, in the file's order before `patches`.
 //! A scan that is missing fails the bench: the figures must not quietly shrink.
 
 use criterion::{Criterion, criterion_group};
@@ -121,7 +123,10 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("remesh");
     group.sample_size(10);
     for (name, rel, params) in cases {
-        let mesh = scan(rel);
+        let mut mesh = scan(rel);
+        if params.method == Method::Isotropic {
+            mesh.reorder_for_locality();
+        }
         params.validate().unwrap();
         group.bench_function(name, |b| {
             b.iter(|| remesh(black_box(&mesh), params).unwrap())

@@ -118,9 +118,9 @@ fn ply_input_is_processed() {
     assert!(tmp.path().join("bun_zipper_res4.obj").is_file());
 }
 
-/// A recipe without `decimate` keeps the file's numbering (the mesh is renumbered for speed
-/// only before a decimation, whose output is numbered afresh anyway): the output's vertices
-/// correspond one for one to the input's.
+/// A recipe without `decimate` or an isotropic `remesh` keeps the file's numbering (the mesh
+/// is renumbered for speed only before those, whose output is numbered afresh anyway): the
+/// output's vertices correspond one for one to the input's.
 #[test]
 fn a_recipe_without_decimate_keeps_the_vertex_order() {
     let tmp = tempfile::tempdir().unwrap();

@@ -23,6 +23,19 @@ use scanmill::ops::decimate::{DecimateParams, decimate};
 use scanmill::ops::remesh::quality::min_angle;
 use scanmill::ops::remesh::{RemeshParams, remesh};
 
+/// Scan `rel` numbered as `scanmill process` numbers it before a remesh
+/// (`Mesh::reorder_for_locality`): what the step remeshes in a job.
+fn scan(rel: &str) -> Mesh {
+    scan_with(rel, &LoadOptions::default())
+}
+
+/// [`scan`], loaded with `options`.
+fn scan_with(rel: &str, options: &LoadOptions) -> Mesh {
+    let mut mesh = common::scan_with(rel, options);
+    mesh.reorder_for_locality();
+    mesh
+}
+
 fn params() -> RemeshParams {
     RemeshParams {
         edge_fraction: Some(0.01),
@@ -132,7 +145,7 @@ fn james_three_iterations_has_no_sliver_inside() {
         iterations: 3,
         ..params()
     };
-    check_with(rel, &common::scan(rel), &params);
+    check_with(rel, &scan(rel), &params);
 }
 
 /// The adaptive remesh passes the same checks, has more triangles than the uniform one at
@@ -154,13 +167,13 @@ fn james_adaptive() {
     let rel = "textured/james_face_stereo_capture/james.obj";
     // Its shortest edges sit on its folded borders, where an input triangle hangs off the
     // scan by one vertex: no face there may lose its area (isotropic::undo_degenerate).
-    adaptive_closer(rel, &common::scan(rel));
+    adaptive_closer(rel, &scan(rel));
 }
 
 #[test]
 fn bunny_adaptive() {
     let rel = "untextured/stanford_bunny/bun_zipper.ply";
-    adaptive_closer(rel, &common::scan(rel));
+    adaptive_closer(rel, &scan(rel));
 }
 
 /// Texture deviation RMS of `out` against `mesh` (its input).
@@ -194,7 +207,7 @@ fn texture_like_decimation(rel: &str, mesh: &Mesh, out: &Mesh) -> (f64, f64) {
 #[test]
 fn james_baked_texture_like_decimation() {
     let rel = "textured/james_face_stereo_capture/james.obj";
-    let mesh = common::scan(rel);
+    let mesh = scan(rel);
     let at = |bake_texture| RemeshParams {
         edge_fraction: Some(0.02),
         bake_texture,
@@ -241,7 +254,7 @@ fn fit_closer(rel: &str, mesh: &Mesh) {
 #[test]
 fn james() {
     let rel = "textured/james_face_stereo_capture/james.obj";
-    fit_closer(rel, &common::scan(rel));
+    fit_closer(rel, &scan(rel));
 }
 
 /// James's ragged border is followed, not cut across: with the default refined border
@@ -251,7 +264,7 @@ fn james() {
 #[test]
 fn james_border_followed() {
     let rel = "textured/james_face_stereo_capture/james.obj";
-    let mesh = common::scan(rel);
+    let mesh = scan(rel);
     let (_, mean, max) = check_with(rel, &mesh, &params());
     let coarse = RemeshParams {
         border_edge_ratio: Some(1.0),
@@ -265,7 +278,7 @@ fn james_border_followed() {
 #[test]
 fn bunny() {
     let rel = "untextured/stanford_bunny/bun_zipper.ply";
-    fit_closer(rel, &common::scan(rel));
+    fit_closer(rel, &scan(rel));
 }
 
 #[test]
@@ -276,7 +289,7 @@ fn facefuns_texture_like_decimation() {
         texture_override: Some(common::data("textured/facefuns_di3d_face/example.png")),
         ..LoadOptions::default()
     };
-    let mesh = common::scan_with(rel, &options);
+    let mesh = scan_with(rel, &options);
     let out = check(rel, &mesh);
     texture_like_decimation(rel, &mesh, &out);
 }
@@ -285,7 +298,7 @@ fn facefuns_texture_like_decimation() {
 #[ignore = "igea has 269k triangles: slow in a debug build; run with --release -- --ignored"]
 fn igea() {
     let rel = "untextured/misc_scans/igea_cyberware_trilist_DERIVED.ply.gz";
-    check(rel, &common::scan(rel));
+    check(rel, &scan(rel));
 }
 
 /// The USNM coral (photogrammetry: 20,640 seam edges, crumpled, 31 non-manifold edges) at
@@ -310,7 +323,7 @@ fn photogrammetry_atlas_without_zero_area_faces() {
 #[test]
 fn photogrammetry_atlas_adaptive() {
     let rel = "textured/smithsonian_usnm1145291_draco/usnm1145291_converted.obj.gz";
-    let mesh = common::scan(rel);
+    let mesh = scan(rel);
     let params = RemeshParams {
         adaptive: true,
         ..params()
@@ -374,7 +387,7 @@ fn james_fine_keeps_its_seams() {
 /// Scan `rel` remeshed (the defaults) at `fraction` of its diagonal: the input, the result
 /// and the audit of the two.
 fn remesh_at(rel: &str, fraction: f64) -> (Mesh, Mesh, Audit) {
-    let mesh = common::scan(rel);
+    let mesh = scan(rel);
     let params = RemeshParams {
         edge_fraction: Some(fraction),
         ..RemeshParams::default()

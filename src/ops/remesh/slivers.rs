@@ -49,8 +49,10 @@ use serde::Serialize;
 pub const SLIVER_ANGLE: f64 = 10.0;
 
 /// At most this many rounds: a remedy raises the smallest angle of the faces it changes
-/// but can leave one of them under the bar, which the next round takes.
-const MAX_ROUNDS: usize = 4;
+/// but can leave one of them under the bar, which the next round takes. A move to one of a
+/// few places may raise a needle's angle only a little at a time: four rounds left one on
+/// james adaptive (docs/remeshing.md, "The input in Morton order").
+const MAX_ROUNDS: usize = 8;
 
 /// What the pass did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
