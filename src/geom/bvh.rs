@@ -129,6 +129,9 @@ pub struct TriangleBvh<'a> {
     /// The triangles' planes in leaf order, when asked for ([`TriangleBvh::with_planes`]);
     /// empty otherwise.
     planes: Vec<Plane>,
+    /// Each node's cone of normals, when asked for ([`TriangleBvh::with_normal_cones`]);
+    /// empty otherwise.
+    cones: Vec<NormalCone>,
     /// Nodes one search may visit.
     budget: u32,
     /// Searches that stopped at the budget.
@@ -187,6 +190,7 @@ impl<'a> TriangleBvh<'a> {
             order,
             corners,
             planes: Vec::new(),
+            cones: Vec::new(),
             budget: BUDGET_PER_LEVEL * levels,
             cut_short: AtomicU64::new(0),
             tie: TIE_FRACTION * diagonal,
@@ -210,6 +214,13 @@ impl<'a> TriangleBvh<'a> {
         tree
     }
 
+    /// The tree with each node's cone of normals (16 bytes per node), for
+    /// [`TriangleBvh::all_facing_within`].
+    pub fn with_normal_cones(mut self) -> TriangleBvh<'a> {
+        self.cones = normal_cones(self.mesh, &self.nodes, &self.corners);
+        self
+    }
+
     pub fn is_empty(&self) -> bool {
         self.order.is_empty()
     }
@@ -220,6 +231,7 @@ impl<'a> TriangleBvh<'a> {
             + self.order.capacity() * 4
             + self.corners.capacity() * 12
             + self.planes.capacity() * std::mem::size_of::<Plane>()
+            + self.cones.capacity() * std::mem::size_of::<NormalCone>()
     }
 
     /// The closest point of the indexed surface to `p`. `start`, if given, is a candidate
@@ -512,6 +524,55 @@ impl<'a> TriangleBvh<'a> {
         best.1
     }
 
+    /// Whether every indexed triangle whose closest point to `p` is within `√d2` (and
+    /// [`TriangleBvh::tie`]) faces the way of `normal` (`normal · m > 0`, `m` its
+    /// unnormalised normal) or has no area. Then whichever of them is closest to `p` faces
+    /// that way, without finding it: a node is passed over when its box is farther or its
+    /// cone of normals lies within 90° of `normal`, and only a triangle turned the other
+    /// way needs its closest point. `false` when one such triangle is near enough, when the
+    /// search passes its budget, or without cones ([`TriangleBvh::with_normal_cones`]).
+    pub fn all_facing_within(&self, p: DVec3, d2: f64, normal: DVec3) -> bool {
+        let unit = normal.normalize_or_zero();
+        if self.cones.is_empty() || unit == DVec3::ZERO || self.order.is_empty() {
+            return false;
+        }
+        let reach = d2.sqrt() + self.tie;
+        let reach2 = reach * reach;
+        let mut stack = [0u32; MAX_DEPTH];
+        let mut top = 1;
+        let mut visited = 0;
+        while top > 0 {
+            top -= 1;
+            let node = stack[top] as usize;
+            visited += 1;
+            if visited > self.budget {
+                return false;
+            }
+            let n = &self.nodes[node];
+            if box_distance_squared(n, p) > reach2 || self.cones[node].faces(unit) {
+                continue;
+            }
+            if n.count == 0 {
+                stack[top] = n.first;
+                stack[top + 1] = n.first + 1;
+                top += 2;
+                continue;
+            }
+            let first = n.first as usize;
+            for i in first..first + n.count as usize {
+                let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+                let m = (b - a).cross(c - a);
+                if m == DVec3::ZERO || normal.dot(m) > 0.0 {
+                    continue;
+                }
+                if self.leaf_hit(i, p).distance_squared <= reach2 {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
     /// The closest point of triangle `t` of the mesh (indexed or not) to `p`.
     pub fn hit_on(&self, p: DVec3, t: u32) -> TriangleHit {
         let [a, b, c] = self.mesh.triangle_positions(t as usize);
@@ -523,6 +584,152 @@ impl<'a> TriangleBvh<'a> {
             distance_squared: point.distance_squared(p),
         }
     }
+}
+
+/// The directions of the normals under a node: every unit normal of a triangle with area
+/// below it is within the half-angle `h` of `axis`, stored as `sin h` (`h` under 90°).
+/// A node with no such triangle has [`NormalCone::NONE`]; one whose normals are not within
+/// less than 90° of one direction has [`NormalCone::ALL`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct NormalCone {
+    axis: [f32; 3],
+    sin_half: f32,
+}
+
+/// Rounding allowance of a cone's test: the axis is stored in `f32` (about 1e-7 off unit)
+/// and each merge's cosine is lowered by [`CONE_WIDENING`]; a normal this close to the
+/// cone's edge is not vouched for.
+const CONE_MARGIN: f64 = 1e-5;
+
+/// What a cone's half-angle cosine is lowered by at each merge, above its rounding.
+const CONE_WIDENING: f64 = 1e-7;
+
+impl NormalCone {
+    const NONE: NormalCone = NormalCone {
+        axis: [0.0; 3],
+        sin_half: -2.0,
+    };
+    const ALL: NormalCone = NormalCone {
+        axis: [0.0; 3],
+        sin_half: 2.0,
+    };
+
+    /// Every normal in the cone is within 90° of the unit vector `unit`, with a margin:
+    /// the angle from the axis plus the half-angle is under 90°.
+    #[inline]
+    fn faces(&self, unit: DVec3) -> bool {
+        let axis = DVec3::new(
+            self.axis[0] as f64,
+            self.axis[1] as f64,
+            self.axis[2] as f64,
+        );
+        unit.dot(axis) > f64::from(self.sin_half) + CONE_MARGIN
+    }
+
+    /// The cone around unit `axis` whose half-angle has cosine `cos_half` (at most 1), or
+    /// [`NormalCone::ALL`] when that is 90° or more.
+    fn around(axis: DVec3, cos_half: f64) -> (NormalCone, f64) {
+        let cos_half = cos_half.min(1.0) - CONE_WIDENING;
+        if cos_half <= CONE_WIDENING || !axis.is_finite() {
+            return (NormalCone::ALL, 0.0);
+        }
+        let sin_half = (1.0 - cos_half * cos_half).max(0.0).sqrt();
+        let cone = NormalCone {
+            axis: axis.as_vec3().to_array(),
+            sin_half: f32_up(sin_half),
+        };
+        (cone, cos_half)
+    }
+
+    /// The stored axis, renormalised in `f64`.
+    fn unit_axis(&self) -> DVec3 {
+        DVec3::from_array(self.axis.map(f64::from)).normalize_or_zero()
+    }
+}
+
+/// Each node's [`NormalCone`], leaves from their triangles, inner nodes from their
+/// children's cones (children come after their parent in `nodes`).
+fn normal_cones(mesh: &Mesh, nodes: &[Node], corners: &[[u32; 3]]) -> Vec<NormalCone> {
+    if corners.is_empty() {
+        // The root of an empty index, a leaf of nothing.
+        return vec![NormalCone::NONE; nodes.len()];
+    }
+    // With each cone, the cosine of its half-angle, which the merges read.
+    let mut cones: Vec<(NormalCone, f64)> = nodes
+        .par_iter()
+        .map(|n| {
+            if n.count == 0 {
+                return (NormalCone::NONE, 1.0);
+            }
+            let first = n.first as usize;
+            let mut units = [DVec3::ZERO; LEAF_SIZE];
+            let mut k = 0;
+            for t in &corners[first..first + n.count as usize] {
+                let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+                let m = (b - a).cross(c - a);
+                match m.try_normalize() {
+                    Some(unit) => {
+                        units[k] = unit;
+                        k += 1;
+                    }
+                    // A normal too small to normalise still has a way: no cone vouches.
+                    None if m != DVec3::ZERO => return (NormalCone::ALL, 0.0),
+                    None => {}
+                }
+            }
+            let units = &units[..k];
+            if units.is_empty() {
+                return (NormalCone::NONE, 1.0);
+            }
+            let axis = units.iter().sum::<DVec3>().normalize_or_zero();
+            if axis == DVec3::ZERO {
+                return (NormalCone::ALL, 0.0);
+            }
+            let stored = NormalCone::around(axis, 1.0).0.unit_axis();
+            let cos_half = units.iter().map(|m| m.dot(stored)).fold(1.0, f64::min);
+            NormalCone::around(axis, cos_half)
+        })
+        .collect();
+    for i in (0..nodes.len()).rev() {
+        let n = nodes[i];
+        if n.count > 0 {
+            continue;
+        }
+        let (l, r) = (cones[n.first as usize], cones[n.first as usize + 1]);
+        cones[i] = merge_cones(l, r);
+    }
+    cones.into_iter().map(|(c, _)| c).collect()
+}
+
+/// The cone holding two cones (each with its half-angle's cosine).
+fn merge_cones(l: (NormalCone, f64), r: (NormalCone, f64)) -> (NormalCone, f64) {
+    if l.0 == NormalCone::NONE {
+        return r;
+    }
+    if r.0 == NormalCone::NONE {
+        return l;
+    }
+    if l.0 == NormalCone::ALL || r.0 == NormalCone::ALL {
+        return (NormalCone::ALL, 0.0);
+    }
+    let (al, ar) = (l.0.unit_axis(), r.0.unit_axis());
+    let axis = (al + ar).normalize_or_zero();
+    if axis == DVec3::ZERO {
+        return (NormalCone::ALL, 0.0);
+    }
+    let stored = NormalCone::around(axis, 1.0).0.unit_axis();
+    // cos(θ + h) of each child: θ the angle from the new axis to the child's, h the
+    // child's half-angle; both under 90°, so the sum is under 90° when it is positive.
+    let reach = |a: DVec3, cos_h: f64| {
+        let cos_t = stored.dot(a);
+        if cos_t <= 0.0 {
+            return -1.0;
+        }
+        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+        let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
+        cos_t * cos_h - sin_t * sin_h
+    };
+    NormalCone::around(axis, reach(al, l.1).min(reach(ar, r.1)))
 }
 
 /// The box `min..max` meets the box `lo..hi` (touching counts).
@@ -873,6 +1080,101 @@ mod tests {
             4 * tested_planes < 3 * tested_plain,
             "{tested_planes} of {tested_plain}"
         );
+    }
+
+    /// A sphere with radii jittered by up to `jitter` and every `turn`-th triangle turned
+    /// inside out: normals that point every way, as at a scan's folds.
+    fn crumpled(jitter: f64, turn: usize) -> Mesh {
+        let mut mesh = uv_sphere(1.0, 24, 40);
+        let mut r = rng(7);
+        for p in mesh.positions.iter_mut() {
+            *p *= 1.0 + jitter * r.random::<f64>();
+        }
+        for t in mesh.triangles.iter_mut().step_by(turn) {
+            t.swap(1, 2);
+        }
+        mesh
+    }
+
+    /// The leaf-order range of each node's triangles.
+    fn ranges(bvh: &TriangleBvh) -> Vec<std::ops::Range<usize>> {
+        let mut out = vec![0..0; bvh.nodes.len()];
+        for i in (0..bvh.nodes.len()).rev() {
+            let n = bvh.nodes[i];
+            let first = n.first as usize;
+            out[i] = if n.count > 0 {
+                first..first + n.count as usize
+            } else {
+                out[first].start..out[first + 1].end
+            };
+        }
+        out
+    }
+
+    #[test]
+    fn normal_cones_hold_their_triangles() {
+        let mut r = rng(11);
+        for mesh in [crumpled(0.02, 1000), crumpled(0.3, 7), grid(7, 5)] {
+            let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+            let bvh = TriangleBvh::new(&mesh, all).with_normal_cones();
+            let ranges = ranges(&bvh);
+            let mut vouched = 0;
+            for _ in 0..200 {
+                let n = DVec3::new(r.random(), r.random(), r.random()) * 2.0 - 1.0;
+                let n = n.normalize();
+                for (node, range) in ranges.iter().enumerate() {
+                    if !bvh.cones[node].faces(n) {
+                        continue;
+                    }
+                    vouched += 1;
+                    for i in range.clone() {
+                        let m = mesh.triangle_cross(bvh.order[i] as usize);
+                        assert!(n.dot(m) > 0.0, "node {node}: {m} against {n}");
+                    }
+                }
+            }
+            assert!(vouched > 1000, "{vouched}");
+        }
+    }
+
+    #[test]
+    fn all_facing_within_vouches_only_when_every_near_triangle_faces() {
+        let mesh = crumpled(0.1, 13);
+        let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+        let plain = TriangleBvh::new(&mesh, all.clone());
+        let bvh = TriangleBvh::new(&mesh, all).with_normal_cones();
+        let mut r = rng(3);
+        let distance2 = |p: DVec3, u: usize| {
+            let [a, b, c] = mesh.triangle_positions(u);
+            closest_on_triangle(p, a, b, c).0.distance_squared(p)
+        };
+        let (mut asked, mut vouched) = (0, 0);
+        for i in 0..3000 {
+            let t = r.random_range(0..mesh.triangles.len());
+            let [a, b, c] = mesh.triangle_positions(t);
+            let p = (a + b + c) / 3.0 * (1.0 + 0.01 * (r.random::<f64>() - 0.5));
+            let d2 = distance2(p, t) * [1.0, 4.0, 100.0][i % 3];
+            let n = if i % 5 == 0 {
+                DVec3::new(r.random(), r.random(), r.random()) - 0.5
+            } else {
+                mesh.triangle_cross(t)
+            };
+            // Without cones nothing is vouched for.
+            assert!(!plain.all_facing_within(p, d2, n));
+            asked += 1;
+            if !bvh.all_facing_within(p, d2, n) {
+                continue;
+            }
+            vouched += 1;
+            for u in 0..mesh.triangles.len() {
+                if distance2(p, u) <= d2 {
+                    let m = mesh.triangle_cross(u);
+                    assert!(n.dot(m) > 0.0, "triangle {u} near {p} turned from {n}");
+                }
+            }
+        }
+        // Where the surface is smooth around the query, the answer is yes.
+        assert!(2 * vouched > asked, "{vouched} of {asked}");
     }
 
     #[test]

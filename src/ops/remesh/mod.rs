@@ -495,7 +495,8 @@ pub fn remesh_with(
             let bvh = match planes {
                 Planes::Kept => TriangleBvh::with_planes(mesh, all),
                 Planes::None => TriangleBvh::new(mesh, all),
-            };
+            }
+            .with_normal_cones();
             (bvh, AngleQuality::of(mesh))
         },
         || {

@@ -123,7 +123,19 @@ impl Input<'_> {
             let m = self.mesh.triangle_cross(t as usize);
             m == DVec3::ZERO || n.dot(m) > 0.0
         };
-        let (centroid, hit) = input_hit(self.bvh, p, hint);
+        let centroid = (p[0] + p[1] + p[2]) / 3.0;
+        let start = self.bvh.hit_on(centroid, hint);
+        // The closest triangle is no farther than `hint`'s: when every triangle that near
+        // faces this way, so does the closest, whichever it is. Nearly every face is
+        // settled so, without the search for it.
+        if facing(hint)
+            && self
+                .bvh
+                .all_facing_within(centroid, start.distance_squared, n)
+        {
+            return true;
+        }
+        let hit = self.bvh.closest(centroid, Some(start)).unwrap_or(start);
         facing(hit.triangle) || facing(self.bvh.facing(centroid, &hit, n.normalize()))
     }
 
