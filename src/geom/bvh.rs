@@ -596,9 +596,10 @@ struct NormalCone {
     sin_half: f32,
 }
 
-/// Rounding allowance of a cone's test: the axis is stored in `f32` (about 1e-7 off unit)
-/// and each merge's cosine is lowered by [`CONE_WIDENING`]; a normal this close to the
-/// cone's edge is not vouched for.
+/// Rounding allowance of a cone's test: the axis is stored in `f32` (about 1e-7 off the
+/// `f64` axis the cone was made around, and off unit length), and a merge's cosines carry
+/// rounding of about 1e-8 in angle; a normal this close to the cone's edge is not vouched
+/// for.
 const CONE_MARGIN: f64 = 1e-5;
 
 /// What a cone's half-angle cosine is lowered by at each merge, above its rounding.
@@ -625,111 +626,155 @@ impl NormalCone {
         );
         unit.dot(axis) > f64::from(self.sin_half) + CONE_MARGIN
     }
+}
 
-    /// The cone around unit `axis` whose half-angle has cosine `cos_half` (at most 1), or
-    /// [`NormalCone::ALL`] when that is 90° or more.
-    fn around(axis: DVec3, cos_half: f64) -> (NormalCone, f64) {
-        let cos_half = cos_half.min(1.0) - CONE_WIDENING;
-        if cos_half <= CONE_WIDENING || !axis.is_finite() {
-            return (NormalCone::ALL, 0.0);
+/// A cone of normals while the cones are made, in `f64`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Cone {
+    /// No triangle with area below.
+    None,
+    /// Normals around the unit `axis` within the half-angle whose cosine and sine these
+    /// are (the angle under 90°).
+    Around { axis: DVec3, cos: f64, sin: f64 },
+    /// Normals not within less than 90° of one direction.
+    All,
+}
+
+impl Cone {
+    /// The cone around unit `axis` with half-angle cosine `cos` (widened; [`Cone::All`]
+    /// when that is 90° or more).
+    fn around(axis: DVec3, cos: f64) -> Cone {
+        let cos = cos.min(1.0) - CONE_WIDENING;
+        if cos <= 0.0 || !axis.is_finite() {
+            return Cone::All;
         }
-        let sin_half = (1.0 - cos_half * cos_half).max(0.0).sqrt();
-        let cone = NormalCone {
-            axis: axis.as_vec3().to_array(),
-            sin_half: f32_up(sin_half),
-        };
-        (cone, cos_half)
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
+        Cone::Around { axis, cos, sin }
     }
 
-    /// The stored axis, renormalised in `f64`.
-    fn unit_axis(&self) -> DVec3 {
-        DVec3::from_array(self.axis.map(f64::from)).normalize_or_zero()
+    /// The cone of a leaf's triangles (`corners`).
+    fn of_leaf(mesh: &Mesh, corners: &[[u32; 3]]) -> Cone {
+        let mut units = [DVec3::ZERO; LEAF_SIZE];
+        let mut k = 0;
+        for t in corners {
+            let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+            let m = (b - a).cross(c - a);
+            match m.try_normalize() {
+                Some(unit) => {
+                    units[k] = unit;
+                    k += 1;
+                }
+                // A normal too small to normalise still has a way: no cone vouches.
+                None if m != DVec3::ZERO => return Cone::All,
+                None => {}
+            }
+        }
+        let units = &units[..k];
+        if units.is_empty() {
+            return Cone::None;
+        }
+        let Some(axis) = units.iter().sum::<DVec3>().try_normalize() else {
+            return Cone::All;
+        };
+        Cone::around(axis, units.iter().map(|m| m.dot(axis)).fold(1.0, f64::min))
+    }
+
+    /// The cone holding `l` and `r`.
+    fn merge(l: Cone, r: Cone) -> Cone {
+        match (l, r) {
+            (Cone::None, c) | (c, Cone::None) => c,
+            (Cone::All, _) | (_, Cone::All) => Cone::All,
+            (
+                Cone::Around {
+                    axis: al,
+                    cos: cl,
+                    sin: sl,
+                },
+                Cone::Around {
+                    axis: ar,
+                    cos: cr,
+                    sin: sr,
+                },
+            ) => {
+                let Some(axis) = (al + ar).try_normalize() else {
+                    return Cone::All;
+                };
+                // cos(θ + h) of each child: θ the angle from the new axis to the child's,
+                // h the child's half-angle; both under 90°, so the sum is under 90° when
+                // this is positive.
+                let reach = |a: DVec3, cos_h: f64, sin_h: f64| {
+                    let cos_t = axis.dot(a);
+                    if cos_t <= 0.0 {
+                        return -1.0;
+                    }
+                    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+                    cos_t * cos_h - sin_t * sin_h
+                };
+                Cone::around(axis, reach(al, cl, sl).min(reach(ar, cr, sr)))
+            }
+        }
+    }
+
+    /// As stored: the axis in `f32`, the sine rounded up.
+    fn stored(self) -> NormalCone {
+        match self {
+            Cone::None => NormalCone::NONE,
+            Cone::All => NormalCone::ALL,
+            Cone::Around { axis, sin, .. } => NormalCone {
+                axis: axis.as_vec3().to_array(),
+                sin_half: f32_up(sin),
+            },
+        }
     }
 }
 
-/// Each node's [`NormalCone`], leaves from their triangles, inner nodes from their
-/// children's cones (children come after their parent in `nodes`).
+/// Each node's [`NormalCone`]: leaves from their triangles, inner nodes from their
+/// children's cones, a level of the tree at a time from the deepest (each level in
+/// parallel; children come after their parent in `nodes`).
 fn normal_cones(mesh: &Mesh, nodes: &[Node], corners: &[[u32; 3]]) -> Vec<NormalCone> {
     if corners.is_empty() {
         // The root of an empty index, a leaf of nothing.
         return vec![NormalCone::NONE; nodes.len()];
     }
-    // With each cone, the cosine of its half-angle, which the merges read.
-    let mut cones: Vec<(NormalCone, f64)> = nodes
+    let mut cones: Vec<Cone> = nodes
         .par_iter()
         .map(|n| {
-            if n.count == 0 {
-                return (NormalCone::NONE, 1.0);
-            }
             let first = n.first as usize;
-            let mut units = [DVec3::ZERO; LEAF_SIZE];
-            let mut k = 0;
-            for t in &corners[first..first + n.count as usize] {
-                let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
-                let m = (b - a).cross(c - a);
-                match m.try_normalize() {
-                    Some(unit) => {
-                        units[k] = unit;
-                        k += 1;
-                    }
-                    // A normal too small to normalise still has a way: no cone vouches.
-                    None if m != DVec3::ZERO => return (NormalCone::ALL, 0.0),
-                    None => {}
-                }
+            if n.count > 0 {
+                Cone::of_leaf(mesh, &corners[first..first + n.count as usize])
+            } else {
+                Cone::None
             }
-            let units = &units[..k];
-            if units.is_empty() {
-                return (NormalCone::NONE, 1.0);
-            }
-            let axis = units.iter().sum::<DVec3>().normalize_or_zero();
-            if axis == DVec3::ZERO {
-                return (NormalCone::ALL, 0.0);
-            }
-            let stored = NormalCone::around(axis, 1.0).0.unit_axis();
-            let cos_half = units.iter().map(|m| m.dot(stored)).fold(1.0, f64::min);
-            NormalCone::around(axis, cos_half)
         })
         .collect();
-    for i in (0..nodes.len()).rev() {
-        let n = nodes[i];
-        if n.count > 0 {
-            continue;
+    let mut depth = vec![0u32; nodes.len()];
+    for (i, n) in nodes.iter().enumerate() {
+        if n.count == 0 {
+            let d = depth[i] + 1;
+            depth[n.first as usize] = d;
+            depth[n.first as usize + 1] = d;
         }
-        let (l, r) = (cones[n.first as usize], cones[n.first as usize + 1]);
-        cones[i] = merge_cones(l, r);
     }
-    cones.into_iter().map(|(c, _)| c).collect()
-}
-
-/// The cone holding two cones (each with its half-angle's cosine).
-fn merge_cones(l: (NormalCone, f64), r: (NormalCone, f64)) -> (NormalCone, f64) {
-    if l.0 == NormalCone::NONE {
-        return r;
-    }
-    if r.0 == NormalCone::NONE {
-        return l;
-    }
-    if l.0 == NormalCone::ALL || r.0 == NormalCone::ALL {
-        return (NormalCone::ALL, 0.0);
-    }
-    let (al, ar) = (l.0.unit_axis(), r.0.unit_axis());
-    let axis = (al + ar).normalize_or_zero();
-    if axis == DVec3::ZERO {
-        return (NormalCone::ALL, 0.0);
-    }
-    let stored = NormalCone::around(axis, 1.0).0.unit_axis();
-    // cos(θ + h) of each child: θ the angle from the new axis to the child's, h the
-    // child's half-angle; both under 90°, so the sum is under 90° when it is positive.
-    let reach = |a: DVec3, cos_h: f64| {
-        let cos_t = stored.dot(a);
-        if cos_t <= 0.0 {
-            return -1.0;
+    let deepest = depth.iter().copied().max().unwrap_or(0);
+    let mut inner_at: Vec<Vec<u32>> = vec![Vec::new(); deepest as usize + 1];
+    for (i, n) in nodes.iter().enumerate() {
+        if n.count == 0 {
+            inner_at[depth[i] as usize].push(i as u32);
         }
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
-        cos_t * cos_h - sin_t * sin_h
-    };
-    NormalCone::around(axis, reach(al, l.1).min(reach(ar, r.1)))
+    }
+    for level in inner_at.iter().rev() {
+        let merged: Vec<Cone> = level
+            .par_iter()
+            .map(|&i| {
+                let c = nodes[i as usize].first as usize;
+                Cone::merge(cones[c], cones[c + 1])
+            })
+            .collect();
+        for (&i, cone) in level.iter().zip(merged) {
+            cones[i as usize] = cone;
+        }
+    }
+    cones.into_par_iter().map(Cone::stored).collect()
 }
 
 /// The box `min..max` meets the box `lo..hi` (touching counts).
