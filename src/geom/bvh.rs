@@ -1180,6 +1180,10 @@ mod tests {
             }
             assert!(vouched > 1000, "{vouched}");
         }
+        // An empty index has cones too, and vouches for nothing.
+        let mesh = grid(3, 3);
+        let empty = TriangleBvh::new(&mesh, Vec::new()).with_normal_cones();
+        assert!(!empty.all_facing_within(DVec3::ZERO, 1.0, DVec3::Z));
     }
 
     #[test]
