@@ -384,6 +384,25 @@ impl<'a> TriangleBvh<'a> {
         lo: DVec3,
         hi: DVec3,
         max_nodes: u32,
+        visit: impl FnMut(usize) -> bool,
+    ) -> bool {
+        let enter = |n: usize| {
+            let n = &self.nodes[n];
+            let min = DVec3::from_array(n.min.map(f64::from));
+            let max = DVec3::from_array(n.max.map(f64::from));
+            meets(min, max, lo, hi)
+        };
+        self.each_entered(max_nodes, enter, visit)
+    }
+
+    /// Calls `visit` with the leaf-order index of every triangle in a leaf reached through
+    /// nodes that `enter` (given a node's index) lets in, in tree order, until `visit`
+    /// answers `false` or `max_nodes` nodes have been visited; `false` when it stopped early
+    /// either way.
+    fn each_entered(
+        &self,
+        max_nodes: u32,
+        mut enter: impl FnMut(usize) -> bool,
         mut visit: impl FnMut(usize) -> bool,
     ) -> bool {
         if self.order.is_empty() {
@@ -398,14 +417,11 @@ impl<'a> TriangleBvh<'a> {
             }
             visited += 1;
             top -= 1;
-            let n = &self.nodes[stack[top] as usize];
-            let (min, max) = (
-                DVec3::from_array(n.min.map(f64::from)),
-                DVec3::from_array(n.max.map(f64::from)),
-            );
-            if !meets(min, max, lo, hi) {
+            let node = stack[top] as usize;
+            if !enter(node) {
                 continue;
             }
+            let n = &self.nodes[node];
             if n.count == 0 {
                 stack[top] = n.first;
                 stack[top + 1] = n.first + 1;
@@ -538,39 +554,15 @@ impl<'a> TriangleBvh<'a> {
         }
         let reach = d2.sqrt() + self.tie;
         let reach2 = reach * reach;
-        let mut stack = [0u32; MAX_DEPTH];
-        let mut top = 1;
-        let mut visited = 0;
-        while top > 0 {
-            top -= 1;
-            let node = stack[top] as usize;
-            visited += 1;
-            if visited > self.budget {
-                return false;
-            }
-            let n = &self.nodes[node];
-            if box_distance_squared(n, p) > reach2 || self.cones[node].faces(unit) {
-                continue;
-            }
-            if n.count == 0 {
-                stack[top] = n.first;
-                stack[top + 1] = n.first + 1;
-                top += 2;
-                continue;
-            }
-            let first = n.first as usize;
-            for i in first..first + n.count as usize {
-                let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
-                let m = (b - a).cross(c - a);
-                if m == DVec3::ZERO || normal.dot(m) > 0.0 {
-                    continue;
-                }
-                if self.leaf_hit(i, p).distance_squared <= reach2 {
-                    return false;
-                }
-            }
-        }
-        true
+        let enter = |node: usize| {
+            box_distance_squared(&self.nodes[node], p) <= reach2 && !self.cones[node].faces(unit)
+        };
+        // A triangle turned the other way and near enough stops the walk.
+        self.each_entered(self.budget, enter, |i| {
+            let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+            let m = (b - a).cross(c - a);
+            m == DVec3::ZERO || normal.dot(m) > 0.0 || self.leaf_hit(i, p).distance_squared > reach2
+        })
     }
 
     /// The closest point of triangle `t` of the mesh (indexed or not) to `p`.
