@@ -45,6 +45,7 @@
 //! nothing panics.
 
 mod boundary;
+mod classify;
 mod ring;
 #[cfg(test)]
 mod tests;
@@ -221,67 +222,6 @@ impl Topology {
         topo.classify_edges_and_fans(mesh);
         (topo.boundary_chains, topo.boundary_loop_count) = boundary::trace_chains(&topo);
         topo
-    }
-
-    /// Edge kinds, orientation, seams; corner fans and vertex flags.
-    fn classify_edges_and_fans(&mut self, mesh: &Mesh) {
-        let mut fans = UnionFind::new(self.corner_vertices.len());
-        for e in 0..self.edges.len() {
-            let sides = row(&self.edge_side_offsets, &self.edge_side_list, e);
-            let [lo, hi] = self.edges[e];
-            match sides.len() {
-                1 => {
-                    self.boundary_edge_count += 1;
-                    self.vertex_flags[lo as usize] |= VERTEX_BOUNDARY;
-                    self.vertex_flags[hi as usize] |= VERTEX_BOUNDARY;
-                }
-                2 => {
-                    let (s1, s2) = (sides[0], sides[1]);
-                    let (t1, h1) = (s1, next_corner(s1));
-                    let (t2, h2) = (s2, next_corner(s2));
-                    if self.corner_vertices[t1 as usize] == self.corner_vertices[t2 as usize] {
-                        fans.union(t1, t2);
-                        fans.union(h1, h2);
-                    } else {
-                        fans.union(t1, h2);
-                        fans.union(h1, t2);
-                    }
-                    let seam = self.seam_flags(mesh, s1, s2, lo);
-                    self.edge_flags[e] |= seam;
-                    self.seam_edge_count += usize::from(seam & EDGE_SEAM != 0);
-                    self.texture_seam_edge_count += usize::from(seam & EDGE_TEXTURE_SEAM != 0);
-                }
-                _ => {
-                    self.non_manifold_edge_count += 1;
-                    self.vertex_flags[lo as usize] |= VERTEX_NON_MANIFOLD;
-                    self.vertex_flags[hi as usize] |= VERTEX_NON_MANIFOLD;
-                }
-            }
-            if sides.len() >= 2 {
-                let forward = sides
-                    .iter()
-                    .filter(|&&s| self.corner_vertices[s as usize] == lo)
-                    .count();
-                let repeated = usize::from(forward >= 2) + usize::from(sides.len() - forward >= 2);
-                if repeated > 0 {
-                    self.edge_flags[e] |= EDGE_INCONSISTENT;
-                    self.inconsistent_edge_count += repeated;
-                }
-            }
-        }
-
-        for v in 0..self.vertex_flags.len() {
-            let corners = row(&self.vertex_corner_offsets, &self.vertex_corner_list, v);
-            if corners.iter().filter(|&&c| fans.is_root(c)).count() > 1 {
-                self.vertex_flags[v] |= VERTEX_NON_MANIFOLD;
-            }
-            if self.vertex_flags[v] & VERTEX_NON_MANIFOLD != 0 {
-                self.non_manifold_vertices.push(v as u32);
-            }
-        }
-        self.corner_fans = (0..self.corner_vertices.len() as u32)
-            .map(|c| fans.find(c))
-            .collect();
     }
 
     /// Seam flags of an interior manifold edge (sides `s1`, `s2`): compare the two

@@ -551,3 +551,101 @@ proptest! {
         }
     }
 }
+
+// ----- the parallel passes against the definitions -----
+
+/// Every corner's fan and the non-manifold vertices by the definitions: one union-find over
+/// all corners, joined edge by edge across the interior manifold edges (the fans are its
+/// sets, named by their lowest corner), and the vertices where two fans meet or a
+/// non-manifold edge ends.
+fn fans_by_definition(topo: &Topology) -> (Vec<u32>, Vec<u32>) {
+    let corners = 3 * topo.triangle_count();
+    let mut sets = UnionFind::new(corners);
+    for e in 0..topo.edge_count() as u32 {
+        if let [s1, s2] = *topo.edge_sides(e) {
+            let (h1, h2) = (next_corner(s1), next_corner(s2));
+            if topo.corner_vertex(s1) == topo.corner_vertex(s2) {
+                sets.union(s1, s2);
+                sets.union(h1, h2);
+            } else {
+                sets.union(s1, h2);
+                sets.union(h1, s2);
+            }
+        }
+    }
+    let fans: Vec<u32> = (0..corners as u32).map(|c| sets.find(c)).collect();
+    let on_non_manifold_edge = ends_of_edges_with(topo, |sides| sides > 2);
+    let non_manifold = (0..topo.vertex_count() as u32)
+        .filter(|&v| {
+            let roots: BTreeSet<u32> = topo
+                .vertex_corners(v)
+                .iter()
+                .map(|&c| fans[c as usize])
+                .collect();
+            roots.len() > 1 || on_non_manifold_edge.contains(&v)
+        })
+        .collect();
+    (fans, non_manifold)
+}
+
+/// The vertices at an end of an edge whose number of sides passes `test`.
+fn ends_of_edges_with(topo: &Topology, test: impl Fn(usize) -> bool) -> BTreeSet<u32> {
+    (0..topo.edge_count() as u32)
+        .filter(|&e| test(topo.edge_sides(e).len()))
+        .flat_map(|e| topo.edge_vertices(e))
+        .collect()
+}
+
+fn check_fans(topo: &Topology) -> Result<(), TestCaseError> {
+    let (fans, non_manifold) = fans_by_definition(topo);
+    let found: Vec<u32> = (0..fans.len() as u32).map(|c| topo.corner_fan(c)).collect();
+    prop_assert_eq!(found, fans);
+    prop_assert_eq!(topo.non_manifold_vertices(), non_manifold.as_slice());
+    let boundary = (0..topo.edge_count() as u32)
+        .filter(|&e| topo.edge_sides(e).len() == 1)
+        .count();
+    prop_assert_eq!(topo.counts().boundary_edges, boundary);
+    let on_boundary = ends_of_edges_with(topo, |sides| sides == 1);
+    for v in 0..topo.vertex_count() as u32 {
+        prop_assert_eq!(topo.is_boundary_vertex(v), on_boundary.contains(&v));
+    }
+    Ok(())
+}
+
+/// Triangles over a few vertices, repeated corners allowed: many edges with three or more
+/// sides, sides running the same way, and pinched fans.
+fn random_soup() -> impl Strategy<Value = Mesh> {
+    (3u32..10).prop_flat_map(|n| {
+        let triangle = (0..n, 0..n, 0..n).prop_map(|(a, b, c)| [a, b, c]);
+        (Just(n), proptest::collection::vec(triangle, 0..30)).prop_map(|(n, tris)| {
+            let positions: Vec<[f64; 3]> = (0..n).map(|i| [i as f64, 0.0, 0.0]).collect();
+            mesh(&positions, &tris)
+        })
+    })
+}
+
+proptest! {
+    #[test]
+    fn fans_and_flags_as_defined_on_soups(m in random_soup()) {
+        check_fans(&m.topology())?;
+    }
+
+    #[test]
+    fn fans_and_flags_as_defined_on_random_meshes(m in random_mesh()) {
+        check_fans(&m.topology())?;
+    }
+}
+
+/// A patch large enough to be split between threads and blocks (over 4,096 vertices), with
+/// holes that pinch vertices, one triangle turned and one edge given a third triangle.
+#[test]
+fn fans_and_flags_as_defined_on_a_large_patch() {
+    let mut m = grid(80, |i, j| (i * 7 + j * 13) % 11 == 0);
+    m.triangles[100].swap(1, 2);
+    let extra = m.triangles[2000];
+    m.triangles.push([extra[1], extra[0], extra[2]]);
+    let topo = crate::testing::on_threads(2, || m.topology());
+    assert!(topo.vertex_count() > 4096 && !topo.non_manifold_vertices().is_empty());
+    assert!(topo.counts().non_manifold_edges > 0 && topo.counts().inconsistent_edges > 0);
+    check_fans(&topo).unwrap();
+}

@@ -33,12 +33,6 @@ impl UnionFind {
             self.parent[ra as usize] = rb;
         }
     }
-
-    /// True when `x` is the root (the lowest id) of its set.
-    #[inline]
-    pub(crate) fn is_root(&self, x: u32) -> bool {
-        self.parent[x as usize] == x
-    }
 }
 
 #[cfg(test)]
@@ -52,6 +46,6 @@ mod tests {
         uf.union(3, 4);
         assert_eq!(uf.find(3), 2);
         assert_eq!(uf.find(4), 2);
-        assert!(uf.is_root(2) && !uf.is_root(4) && uf.is_root(0));
+        assert_eq!((uf.find(2), uf.find(0)), (2, 0));
     }
 }
