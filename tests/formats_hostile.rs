@@ -319,7 +319,7 @@ fn gltf_uris_that_leave_the_scan_folder_are_refused() {
         &dir,
         &out,
         "buffer-up.gltf",
-        &["\"../../../etc/passwd\" resolves outside the scan's folder"],
+        &["buffer path \"../../../etc/passwd\" resolves outside the scan's folder"],
     );
     refused(
         &dir,
@@ -331,13 +331,13 @@ fn gltf_uris_that_leave_the_scan_folder_are_refused() {
         &dir,
         &out,
         "image-up.gltf",
-        &["resolves outside the scan's folder"],
+        &["texture path", "resolves outside the scan's folder"],
     );
     refused(
         &dir,
         &out,
         "buffer-link.gltf",
-        &["\"link.bin\" resolves outside the scan's folder"],
+        &["buffer path \"link.bin\" resolves outside the scan's folder"],
     );
 }
 

@@ -162,6 +162,12 @@ fn references_outside_the_scan_folder_are_refused() {
             "{what}: {}",
             r.stderr
         );
+        // The refusal says what the file was named as.
+        let role = match what {
+            "symlinked mtllib" => "material library path \"scan.mtl\"",
+            _ => "texture path",
+        };
+        assert!(r.stderr.contains(role), "{what}: {}", r.stderr);
         assert_eq!(tree(&out), Vec::<String>::new(), "{what}");
     }
 

@@ -4,6 +4,7 @@
 mod common;
 
 use scanmill::mesh::obj;
+use scanmill::mesh::texture::Referenced;
 use scanmill::mesh::{LoadOptions, Location, Mesh, MeshError, load, save};
 use std::path::{Path, PathBuf};
 
@@ -481,7 +482,16 @@ fn missing_mtl() {
 fn missing_texture() {
     let (_d, obj) = textured("newmtl m\nmap_Kd gone.png\n", &[]);
     let e = load_err(&obj);
-    assert!(matches!(e, MeshError::Texture { .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            MeshError::MissingFile {
+                role: Referenced::Texture,
+                ..
+            }
+        ),
+        "{e}"
+    );
     let text = e.to_string();
     assert!(
         text.contains("gone.png") && text.contains("s.mtl"),
@@ -498,7 +508,7 @@ fn missing_bump_map_is_an_error_too() {
     );
     let e = load_err(&obj);
     assert!(
-        matches!(e, MeshError::Texture { ref texture, .. } if texture == "n.png"),
+        matches!(e, MeshError::MissingFile { ref name, .. } if name == "n.png"),
         "{e}"
     );
 }
@@ -510,7 +520,10 @@ fn texture_path_escaping_the_folder() {
     let (dir, obj) = textured("newmtl m\nmap_Kd ../x.png\n", &[]);
     let e = load_err(&obj);
     assert!(
-        matches!(e, MeshError::PathEscapes { ref texture, .. } if texture == "../x.png"),
+        matches!(
+            e,
+            MeshError::PathEscapes { ref name, role: Referenced::Texture, .. } if name == "../x.png"
+        ),
         "{e}"
     );
     std::fs::write(dir.path().parent().unwrap().join("x.png"), &png).ok();

@@ -3,6 +3,7 @@
 
 use super::files::SpecialKind;
 use super::limits::Limit;
+use super::texture::Referenced;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
@@ -84,15 +85,30 @@ pub enum MeshError {
     /// A file the scan names (`mtllib`, `map_*`, PLY `TextureFile`) that lies outside the
     /// scan's folder once `..` and symlinks are resolved; `resolved` is where it leads.
     #[error(
-        "{}: texture path \"{}\" resolves outside the scan's folder ({}); refusing",
+        "{}: {role} path \"{}\" resolves outside the scan's folder ({}); refusing",
         shown_path(.path),
-        shown(.texture),
+        shown(.name),
         shown_path(.resolved)
     )]
     PathEscapes {
         path: PathBuf,
-        texture: String,
+        /// What `path` names the file as.
+        role: Referenced,
+        name: String,
         resolved: PathBuf,
+    },
+    /// A file the scan names (as for [`MeshError::PathEscapes`]) that does not exist.
+    #[error(
+        "{}: {role} {}: file not found (looked for {})",
+        shown_path(.path),
+        shown(.name),
+        shown_path(.looked)
+    )]
+    MissingFile {
+        path: PathBuf,
+        role: Referenced,
+        name: String,
+        looked: PathBuf,
     },
     /// A FIFO, device, socket or folder where a file was expected; never opened for reading.
     #[error("{} is {kind}; refusing to read it", shown_path(.path))]

@@ -5,7 +5,7 @@ use super::error::{Location, MeshError, Result};
 use super::files;
 use super::limits::{InputLimits, Limit};
 use super::model::{MapFile, Material, Texture};
-use super::texture::{self, is_map_statement, normalise_name, split_map_arguments};
+use super::texture::{self, Referenced, is_map_statement, normalise_name, split_map_arguments};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -159,7 +159,14 @@ pub fn load(mtl_path: &Path, scan_dir: &Path, limits: &InputLimits) -> Result<Ve
         if let Some(path) = resolved.get(name) {
             return Ok(path.clone());
         }
-        let path = texture::resolve_in_scan(scan_dir, &base_dir, name, mtl_path, cap)?.path;
+        let path = texture::resolve_in_scan(
+            scan_dir,
+            &base_dir,
+            (name, Referenced::Texture),
+            mtl_path,
+            cap,
+        )?
+        .path;
         resolved.insert(name.to_string(), path.clone());
         Ok(path)
     };

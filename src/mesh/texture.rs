@@ -55,28 +55,54 @@ pub fn folder_of(path: &Path) -> PathBuf {
     }
 }
 
-/// Resolves `name` (as written in `referrer`, an MTL, OBJ or PLY, already passed through
-/// [`normalise_name`]) against `base_dir` (the referrer's folder), and checks that the result
-/// stays inside `scan_dir` (canonical): `..` that climbs out, an absolute path elsewhere, or a
-/// symlink that resolves outside are [`MeshError::PathEscapes`]; a FIFO, device or folder is
-/// [`MeshError::SpecialFile`] (refused without opening it); a file above `cap` (the value of
-/// `limit`) is [`MeshError::TooLarge`]. A file that does not exist is [`MeshError::Texture`].
+/// What a scan's file names another file as: said in the refusal of a name that leads
+/// outside the scan's folder.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Referenced {
+    /// An image (`map_Kd`, PLY `TextureFile`, a glTF image).
+    Texture,
+    /// An OBJ's `mtllib`.
+    MaterialLibrary,
+    /// A glTF buffer.
+    Buffer,
+}
+
+impl std::fmt::Display for Referenced {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Referenced::Texture => "texture",
+            Referenced::MaterialLibrary => "material library",
+            Referenced::Buffer => "buffer",
+        })
+    }
+}
+
+/// Resolves `name`, a file of the given role as written in `referrer` (an MTL, OBJ, PLY or
+/// glTF; already passed through [`normalise_name`]), against `base_dir` (the referrer's
+/// folder), and checks that the result stays inside `scan_dir` (canonical): `..` that climbs
+/// out, an absolute path elsewhere, or a symlink that resolves outside are
+/// [`MeshError::PathEscapes`]; a FIFO, device or folder is [`MeshError::SpecialFile`]
+/// (refused without opening it); a file above `cap` (the value of `limit`) is
+/// [`MeshError::TooLarge`]; a file that does not exist is [`MeshError::MissingFile`]. The
+/// errors name the role ("material library path … resolves outside the scan's folder").
 pub fn resolve_in_scan(
     scan_dir: &Path,
     base_dir: &Path,
-    name: &str,
+    (name, role): (&str, Referenced),
     referrer: &Path,
     (cap, limit): (u64, Limit),
 ) -> Result<ResolvedFile> {
     let escapes = |resolved: PathBuf| MeshError::PathEscapes {
         path: referrer.to_path_buf(),
-        texture: name.to_string(),
+        role,
+        name: name.to_string(),
         resolved,
     };
-    let missing = |looked: &Path| MeshError::Texture {
+    let missing = |looked: &Path| MeshError::MissingFile {
         path: referrer.to_path_buf(),
-        texture: name.to_string(),
-        message: format!("file not found (looked for {})", looked.display()),
+        role,
+        name: name.to_string(),
+        looked: looked.to_path_buf(),
     };
     let name_path = Path::new(name);
     // Where the name leads before symlinks, for the lexical check and for messages.

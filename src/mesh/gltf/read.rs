@@ -23,7 +23,7 @@ use crate::mesh::error::{Location, MeshError, Result};
 use crate::mesh::files;
 use crate::mesh::limits::Limit;
 use crate::mesh::model::{EmbeddedImage, Index, Material, Mesh, Texture};
-use crate::mesh::texture;
+use crate::mesh::texture::{self, Referenced};
 use base64::Engine;
 use glam::{DMat3, DMat4, DVec2, DVec3};
 use gltf::mesh::{Mode, Semantic};
@@ -130,7 +130,7 @@ fn load_buffers(
             gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
                 decode_data_uri(uri, total, cap).map_err(at)?
             }
-            gltf::buffer::Source::Uri(uri) => read_beside(path, uri, options, "buffer")?,
+            gltf::buffer::Source::Uri(uri) => read_beside(path, uri, options, Referenced::Buffer)?,
         };
         if (bytes.len() as u64) < buffer.length() as u64 {
             return Err(at(format!(
@@ -173,8 +173,8 @@ fn decode_data_uri(uri: &str, before: u64, cap: u64) -> std::result::Result<Vec<
 }
 
 /// Reads a file a URI names, resolved inside the scan's folder (as an OBJ's textures are).
-fn read_beside(path: &Path, uri: &str, options: &LoadOptions, what: &str) -> Result<Vec<u8>> {
-    let file = resolve_beside(path, uri, options, what)?;
+fn read_beside(path: &Path, uri: &str, options: &LoadOptions, role: Referenced) -> Result<Vec<u8>> {
+    let file = resolve_beside(path, uri, options, role)?;
     files::read_whole(&file, options.limits.max_file_bytes, Limit::FileBytes)
 }
 
@@ -182,15 +182,20 @@ fn resolve_beside(
     path: &Path,
     uri: &str,
     options: &LoadOptions,
-    what: &str,
+    role: Referenced,
 ) -> Result<std::path::PathBuf> {
+    // glTF calls a texture's file an image.
+    let what = match role {
+        Referenced::Texture => "image".to_string(),
+        other => other.to_string(),
+    };
     let name = super::refs::file_name(uri)
         .map_err(|m| malformed(path, format!("{what} URI {uri:?}: {m}")))?;
     let limit = (options.limits.max_file_bytes, Limit::FileBytes);
     let resolved = texture::resolve_in_scan(
         &texture::scan_folder(path),
         &texture::folder_of(path),
-        &name,
+        (&name, role),
         path,
         limit,
     )?;
@@ -228,7 +233,7 @@ fn load_materials(
             let at = |m: String| malformed(path, format!("image {image}: {m}"));
             material.diffuse_texture = match image_source(document, image).map_err(at)? {
                 ImageSource::File(uri) => {
-                    let file = resolve_beside(path, uri, options, "image")?;
+                    let file = resolve_beside(path, uri, options, Referenced::Texture)?;
                     Some(Texture {
                         name: super::refs::file_name(uri).unwrap_or_default(),
                         path: file,

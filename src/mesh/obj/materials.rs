@@ -6,6 +6,7 @@ use super::{DEFAULT_MATERIAL, OVERRIDE_MATERIAL};
 use crate::mesh::error::{MeshError, Result};
 use crate::mesh::limits::{InputLimits, Limit};
 use crate::mesh::model::{Index, Material, Texture};
+use crate::mesh::texture::Referenced;
 use crate::mesh::{mtl, texture};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -77,8 +78,14 @@ fn load_libraries(
     let cap = (limits.max_mtl_bytes, Limit::MtlBytes);
     for (line, argument) in mtllibs {
         for name in mtllib_names(&obj_dir, argument) {
-            let resolved = texture::resolve_in_scan(&scan_dir, &obj_dir, &name, path, cap)
-                .map_err(|e| mtl_missing(path, *line, &obj_dir.join(&name), e))?;
+            let resolved = texture::resolve_in_scan(
+                &scan_dir,
+                &obj_dir,
+                (&name, Referenced::MaterialLibrary),
+                path,
+                cap,
+            )
+            .map_err(|e| mtl_missing(path, *line, &obj_dir.join(&name), e))?;
             if seen_libraries.contains(&resolved.path) {
                 continue;
             }
@@ -189,12 +196,12 @@ fn mtllib_names(obj_dir: &Path, argument: &str) -> Vec<String> {
 /// A missing or unreadable MTL is an error: the scan is incomplete without it.
 fn mtl_missing(obj: &Path, line: u64, looked: &Path, e: MeshError) -> MeshError {
     match e {
-        MeshError::Texture { texture, .. } => MeshError::Io {
+        MeshError::MissingFile { name, .. } => MeshError::Io {
             path: looked.to_path_buf(),
             source: std::io::Error::new(
                 std::io::ErrorKind::NotFound,
                 format!(
-                    "material library {texture:?} named at {} line {line} does not exist",
+                    "material library {name:?} named at {} line {line} does not exist",
                     obj.display()
                 ),
             ),

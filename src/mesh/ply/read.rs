@@ -23,7 +23,7 @@ use crate::mesh::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 use crate::mesh::error::{Location, MeshError, Result};
 use crate::mesh::limits::Limit;
 use crate::mesh::model::{Index, Material, Mesh, Texture};
-use crate::mesh::texture;
+use crate::mesh::texture::{self, Referenced};
 use glam::{DVec2, DVec3};
 use std::path::Path;
 
@@ -778,7 +778,8 @@ fn texture_materials(
             name: format!("texture{i}"),
             ..Material::default()
         };
-        match texture::resolve_in_scan(&scan_dir, &base_dir, name, path, cap) {
+        match texture::resolve_in_scan(&scan_dir, &base_dir, (name, Referenced::Texture), path, cap)
+        {
             Ok(resolved) => {
                 material.diffuse_texture = Some(Texture {
                     name: name.clone(),
@@ -787,7 +788,7 @@ fn texture_materials(
                     embedded: None,
                 });
             }
-            Err(MeshError::Texture { .. }) => {
+            Err(MeshError::MissingFile { .. }) => {
                 tracing::warn!(path = %path.display(), texture = %name, "PLY texture is missing; material {} has no texture", material.name);
                 material
                     .other_statements
