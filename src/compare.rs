@@ -188,6 +188,11 @@ pub fn run_on_mesh(
     };
     for named in recipes {
         let mut mesh = start_mesh.clone();
+        if crate::process::renumbers_anyway(&named.recipe) {
+            // Numbered as `scanmill process` numbers the scan for this recipe, as part of
+            // the load (outside the steps' time): the row is what `process` would make.
+            mesh.reorder_for_locality();
+        }
         let start = Instant::now();
         let outcome = run_steps(
             &named.recipe,
@@ -389,6 +394,58 @@ mod tests {
             },
         };
         run_on_mesh(&clean, "sphere", &recipes, &options).unwrap()
+    }
+
+    /// A decimating recipe is run on the scan numbered as `scanmill process` numbers it
+    /// (here a sphere whose vertices and triangles are listed in reverse order).
+    #[test]
+    fn a_decimating_row_is_what_process_makes() {
+        let mut scrambled = uv_sphere(1.0, 30, 60);
+        scrambled.positions.reverse();
+        let n = scrambled.positions.len() as u32;
+        for w in &mut scrambled.wedges {
+            w.vertex = n - 1 - w.vertex;
+        }
+        scrambled.triangles.reverse();
+        let decimate = recipe("[[step]]\nkind = \"decimate\"\ntarget_faces = 600\n");
+        let options = CompareOptions {
+            noise: None,
+            metrics: MetricsOptions {
+                samples: 2_000,
+                ..Default::default()
+            },
+        };
+        let named = [NamedRecipe {
+            name: "decimate".into(),
+            recipe: decimate.clone(),
+        }];
+        let row = run_on_mesh(&scrambled, "sphere", &named, &options)
+            .unwrap()
+            .rows
+            .remove(0);
+        // What `process` makes: the steps on the scan renumbered, measured against the scan.
+        let measured = |steps_on: &Mesh| {
+            let mut result = steps_on.clone();
+            run_steps(&decimate, &mut result, &NoProgress, 0, 1).unwrap();
+            let mut expected = CompareRow::new("decimate", &result, 0.0);
+            expected.fill(
+                crate::metrics::compare_with_cache(
+                    &result,
+                    &scrambled,
+                    &options.metrics,
+                    &mut TextureCache::new(),
+                )
+                .unwrap(),
+            );
+            expected
+        };
+        let mut renumbered = scrambled.clone();
+        renumbered.reorder_for_locality();
+        let process = measured(&renumbered);
+        assert_eq!(row.faces, process.faces);
+        assert_eq!(row.distance_mean, process.distance_mean);
+        // The file's order decimates differently (so the test can tell).
+        assert_ne!(measured(&scrambled).distance_mean, process.distance_mean);
     }
 
     #[test]

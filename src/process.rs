@@ -212,7 +212,8 @@ pub fn preview_file_name(stem: &str) -> String {
 /// corresponds vertex for vertex to the input. The `patches` remesh keeps it too: its layout
 /// follows the vertex order, and in the new order it left more faces against the input on
 /// one scan of its checks, for a time that is not where the numbering matters.
-fn renumbers_anyway(recipe: &Recipe) -> bool {
+/// `scanmill compare` follows the same rule, so that its rows are what `process` makes.
+pub(crate) fn renumbers_anyway(recipe: &Recipe) -> bool {
     recipe.steps.iter().any(|s| match s {
         Step::Decimate(_) => true,
         Step::Remesh(p) => p.method == Method::Isotropic,
