@@ -601,6 +601,52 @@ fn truncated_and_corrupt_images() {
     load(&obj, &no_texture_check()).unwrap();
 }
 
+/// The textures are checked beside the weld: a bad texture is still the error when the
+/// geometry is bad too, and the sizes reach the materials the repaired mesh keeps (here the
+/// second one, after an unused first material is dropped).
+#[test]
+fn texture_check_beside_the_weld() {
+    // Its only face is degenerate: the repair drops it, and the weld finds no triangle.
+    let obj = format!("mtllib s.mtl\n{TRI}usemtl m\nf 1/1 1/1 2/2\n");
+    let mtl = "newmtl m\nmap_Kd t.png\n";
+    let (_d, path) = scan(&[
+        ("s.obj", obj.as_bytes()),
+        ("s.mtl", mtl.as_bytes()),
+        ("t.png", b"not an image at all"),
+    ]);
+    let e = load_err(&path);
+    assert!(matches!(e, MeshError::Texture { .. }), "{e}");
+    let options = LoadOptions {
+        check_textures: false,
+        ..LoadOptions::default()
+    };
+    let e = load(&path, &options).expect_err("no triangle");
+    assert!(matches!(e, MeshError::NoTriangles { .. }), "{e}");
+
+    let png = png(6, 4);
+    let obj = format!("mtllib s.mtl\n{TRI}usemtl used\nf 1/1 2/2 3/3\n");
+    let mtl = "newmtl unused\nmap_Kd a.png\nnewmtl used\nmap_Kd b.png\n";
+    let (_d, path) = scan(&[
+        ("s.obj", obj.as_bytes()),
+        ("s.mtl", mtl.as_bytes()),
+        ("a.png", &png),
+        ("b.png", &self::png(3, 5)),
+    ]);
+    let (mesh, report) = load(&path, &LoadOptions::default()).unwrap();
+    let sizes: Vec<_> = mesh
+        .materials
+        .iter()
+        .map(|m| {
+            (
+                m.name.as_str(),
+                m.diffuse_texture.as_ref().and_then(|t| t.size),
+            )
+        })
+        .collect();
+    assert!(sizes.contains(&("used", Some((3, 5)))), "{sizes:?}");
+    assert_eq!(report.decoded_textures, 2);
+}
+
 #[test]
 fn mtl_features_and_output_names() {
     let png = png(8, 8);

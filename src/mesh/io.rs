@@ -59,9 +59,9 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
     match format {
         Format::Obj => {
             // The text of a large OBJ is bigger than the mesh: free it before welding.
-            let builder = obj::parse(path, &bytes, options)?;
+            let (builder, textures) = obj::parse_unchecked(path, &bytes, options)?;
             drop(bytes);
-            builder.finish(options)
+            obj::finish(builder, textures, options)
         }
         Format::Ply => ply::read(path, &bytes, options),
         Format::Stl => stl::read(path, &bytes, options),

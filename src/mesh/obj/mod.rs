@@ -5,6 +5,7 @@ mod materials;
 mod read;
 mod write;
 
+pub(crate) use read::{finish, parse_unchecked};
 pub use read::{parse, read};
 pub use write::{copy_file, copy_source, write, write_reserving};
 

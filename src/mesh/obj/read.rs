@@ -28,12 +28,13 @@
 use super::materials::{Assigned, MaterialStatements, assign_materials, check_textures};
 use crate::mesh::build::{Corner, LoadOptions, LoadReport, MeshBuilder};
 use crate::mesh::error::{Location, MeshError, Result};
-use crate::mesh::model::{Index, Mesh};
+use crate::mesh::limits::InputLimits;
+use crate::mesh::model::{Index, Material, Mesh};
 use crate::mesh::texture;
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Files above this size are parsed in parallel chunks of at least this size.
 const PARALLEL_CHUNK_BYTES: usize = 1 << 20;
@@ -41,12 +42,80 @@ const PARALLEL_CHUNK_BYTES: usize = 1 << 20;
 /// Reads an OBJ (its bytes already in memory; `path` names it in errors and locates the
 /// MTL and textures) into a mesh.
 pub fn read(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<(Mesh, LoadReport)> {
-    parse(path, bytes, options)?.finish(options)
+    let (builder, textures) = parse_unchecked(path, bytes, options)?;
+    finish(builder, textures, options)
 }
 
-/// Parses an OBJ and its materials into a [`MeshBuilder`], before welding and repair.
-/// Faces are in file order, fan-triangulated; indices are exactly the file's.
+/// Parses an OBJ and its materials into a [`MeshBuilder`], before welding and repair, and
+/// checks its textures (`options.check_textures`). Faces are in file order,
+/// fan-triangulated; indices are exactly the file's.
 pub fn parse(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<MeshBuilder> {
+    let (mut builder, textures) = parse_unchecked(path, bytes, options)?;
+    if let Some(textures) = textures {
+        builder.report.decoded_textures = textures.run(&mut builder.materials)?;
+    }
+    Ok(builder)
+}
+
+/// The check of an OBJ's textures, still to be made ([`parse_unchecked`]): each distinct
+/// image decoded once within the limits ([`check_textures`]).
+pub(crate) struct TextureCheck {
+    /// The MTL that names each material (for the errors).
+    referrers: Vec<PathBuf>,
+    limits: InputLimits,
+}
+
+impl TextureCheck {
+    /// Checks the textures of `materials` (the parsed ones, in their order: the first
+    /// failure in that order is the error) and stores each image's size; returns how many
+    /// images were decoded.
+    fn run(&self, materials: &mut [Material]) -> Result<usize> {
+        check_textures(materials, &self.referrers, &self.limits)
+    }
+}
+
+/// Welds and repairs a parsed OBJ ([`MeshBuilder::finish`]) beside the check of its
+/// textures, when there is one. Decoding the images is sequential (a 2,048² JPEG takes
+/// ~20 ms) and the weld leaves a core idle part of the time. A texture that fails is the
+/// error even when the geometry fails too, as when textures were checked first.
+pub(crate) fn finish(
+    builder: MeshBuilder,
+    textures: Option<TextureCheck>,
+    options: &LoadOptions,
+) -> Result<(Mesh, LoadReport)> {
+    let Some(textures) = textures else {
+        return builder.finish(options);
+    };
+    // The materials are few: the check works on a copy, and the sizes it finds are given to
+    // the materials the repaired mesh keeps (by image path, which is what they depend on).
+    let mut checked = builder.materials.clone();
+    let (decoded, finished) =
+        rayon::join(|| textures.run(&mut checked), || builder.finish(options));
+    let decoded = decoded?;
+    let (mut mesh, mut report) = finished?;
+    report.decoded_textures = decoded;
+    let size_of = |path: &Path| {
+        checked
+            .iter()
+            .filter_map(|m| m.diffuse_texture.as_ref())
+            .find(|t| t.path == path)
+            .and_then(|t| t.size)
+    };
+    for material in &mut mesh.materials {
+        if let Some(t) = &mut material.diffuse_texture {
+            t.size = size_of(&t.path);
+        }
+    }
+    Ok((mesh, report))
+}
+
+/// [`parse`] without the texture check, which it returns to be made later (`None` when
+/// `options.check_textures` is off): [`finish`] makes it beside the weld.
+pub(crate) fn parse_unchecked(
+    path: &Path,
+    bytes: &[u8],
+    options: &LoadOptions,
+) -> Result<(MeshBuilder, Option<TextureCheck>)> {
     let geometry = parse_geometry(path, bytes)?;
     let mut builder = MeshBuilder::new(path, "obj");
     builder.report.file_vertices = geometry.positions.len();
@@ -84,14 +153,14 @@ pub fn parse(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<MeshBui
         faces: geometry.faces.len(),
     };
     let Assigned {
-        mut materials,
+        materials,
         referrers,
         face_materials,
     } = assign_materials(path, &statements, options)?;
-    if options.check_textures {
-        builder.report.decoded_textures =
-            check_textures(&mut materials, &referrers, &options.limits)?;
-    }
+    let textures = options.check_textures.then(|| TextureCheck {
+        referrers,
+        limits: options.limits.clone(),
+    });
     let colors_complete =
         !geometry.positions.is_empty() && geometry.colors.len() == geometry.positions.len();
     if !geometry.colors.is_empty() && !colors_complete {
@@ -113,7 +182,7 @@ pub fn parse(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<MeshBui
     builder.faces = geometry.faces;
     builder.face_materials = face_materials;
     builder.materials = materials;
-    Ok(builder)
+    Ok((builder, textures))
 }
 
 // ---------------------------------------------------------------------------------------
