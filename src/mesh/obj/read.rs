@@ -86,24 +86,22 @@ pub(crate) fn finish(
     let Some(textures) = textures else {
         return builder.finish(options);
     };
-    // The materials are few: the check works on a copy, and the sizes it finds are given to
-    // the materials the repaired mesh keeps (by image path, which is what they depend on).
+    // The check works on a copy of the materials, and the sizes it finds are given to the
+    // materials the repaired mesh keeps, by image path (what a size depends on).
     let mut checked = builder.materials.clone();
     let (decoded, finished) =
         rayon::join(|| textures.run(&mut checked), || builder.finish(options));
     let decoded = decoded?;
     let (mut mesh, mut report) = finished?;
     report.decoded_textures = decoded;
-    let size_of = |path: &Path| {
-        checked
-            .iter()
-            .filter_map(|m| m.diffuse_texture.as_ref())
-            .find(|t| t.path == path)
-            .and_then(|t| t.size)
-    };
+    let sizes: BTreeMap<&Path, (u32, u32)> = checked
+        .iter()
+        .filter_map(|m| m.diffuse_texture.as_ref())
+        .filter_map(|t| Some((t.path.as_path(), t.size?)))
+        .collect();
     for material in &mut mesh.materials {
         if let Some(t) = &mut material.diffuse_texture {
-            t.size = size_of(&t.path);
+            t.size = sizes.get(t.path.as_path()).copied();
         }
     }
     Ok((mesh, report))
