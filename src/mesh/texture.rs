@@ -55,8 +55,8 @@ pub fn folder_of(path: &Path) -> PathBuf {
     }
 }
 
-/// What a scan's file names another file as: said in the refusal of a name that leads
-/// outside the scan's folder.
+/// What a scan's file names another file as: said when such a name leads outside the scan's
+/// folder or to no file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Referenced {
     /// An image (`map_Kd`, PLY `TextureFile`, a glTF image).
