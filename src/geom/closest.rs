@@ -21,14 +21,41 @@ pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DV
     let ab = b - a;
     let ac = c - a;
     let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
+    let corner_b = || {
+        let bp = p - b;
+        (ab.dot(bp), ac.dot(bp))
+    };
+    let corner_c = || {
+        let cp = p - c;
+        (ab.dot(cp), ac.dot(cp))
+    };
+    regions(
+        [a, b, c],
+        ab,
+        ac,
+        (ab.dot(ap), ac.dot(ap)),
+        corner_b,
+        corner_c,
+    )
+}
+
+/// The case analysis of [`closest_on_triangle`] from the dot products it reads, with the
+/// products `(d3, d4)` (of `p − b`) and `(d5, d6)` (of `p − c`) made only when a case needs
+/// them. One copy of the rule for both callers: a lone triangle, and a fan whose triangles
+/// share their edges' products ([`closest_on_fan`]).
+#[inline(always)]
+fn regions(
+    [a, b, c]: [DVec3; 3],
+    ab: DVec3,
+    ac: DVec3,
+    (d1, d2): (f64, f64),
+    corner_b: impl FnOnce() -> (f64, f64),
+    corner_c: impl FnOnce() -> (f64, f64),
+) -> (DVec3, DVec3) {
     if d1 <= 0.0 && d2 <= 0.0 {
         return (a, DVec3::X);
     }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
+    let (d3, d4) = corner_b();
     if d3 >= 0.0 && d4 <= d3 {
         return (b, DVec3::Y);
     }
@@ -37,9 +64,7 @@ pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DV
         let v = d1 / (d1 - d3);
         return (a + ab * v, DVec3::new(1.0 - v, v, 0.0));
     }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
+    let (d5, d6) = corner_c();
     if d6 >= 0.0 && d5 <= d6 {
         return (c, DVec3::Z);
     }
@@ -60,6 +85,56 @@ pub fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> (DVec3, DV
     let v = vb / denom;
     let w = vc / denom;
     (a + ab * v + ac * w, DVec3::new(1.0 - v - w, v, w))
+}
+
+/// The point nearest to `p` of the closed fan of triangles `(a, r_i, r_{i+1})` around `a`,
+/// `r_i = ring(i)` for `i` in `0..k` (the last triangle closes on `r_0`); the first nearest
+/// in ring order on a tie, and `p` itself when the ring is empty.
+///
+/// Each triangle's point is [`closest_on_triangle`]'s, bit for bit: two neighbouring
+/// triangles share the edge `a r_i`, and the products of that edge with `p − a` and
+/// `p − r_i` (which the case analysis reads of both) are made once, the same numbers from
+/// the same operands. The fairing projects every moved vertex onto its fan this way in
+/// each sweep of `relax`: two million fans on a 400k-triangle scan.
+#[inline]
+pub fn closest_on_fan(p: DVec3, a: DVec3, k: usize, ring: impl Fn(usize) -> DVec3) -> DVec3 {
+    if k == 0 {
+        return p;
+    }
+    let ap = p - a;
+    // Corner `r`: the edge `e = r − a`, `q = p − r`, `e·(p − a)` and `e·q`.
+    let corner = |r: DVec3| {
+        let e = r - a;
+        let q = p - r;
+        (r, e, q, e.dot(ap), e.dot(q))
+    };
+    let first = corner(ring(0));
+    let mut current = first;
+    let mut best = (f64::INFINITY, p);
+    for i in 0..k {
+        let next = if i + 1 == k {
+            first
+        } else {
+            corner(ring(i + 1))
+        };
+        let ((b, eb, qb, db, sb), (c, ec, qc, dc, sc)) = (current, next);
+        // In closest_on_triangle(p, a, b, c): ab = eb, ac = ec, d1 = db, d2 = dc,
+        // d3 = ab·(p − b) = sb, d4 = ac·(p − b), d5 = ab·(p − c), d6 = ac·(p − c) = sc.
+        let (point, _) = regions(
+            [a, b, c],
+            eb,
+            ec,
+            (db, dc),
+            || (sb, ec.dot(qb)),
+            || (eb.dot(qc), sc),
+        );
+        let d = (point - p).length_squared();
+        if d < best.0 {
+            best = (d, point);
+        }
+        current = next;
+    }
+    best.1
 }
 
 /// A triangle's plane: unit normal and offset (a zero normal for a triangle without area).
@@ -111,7 +186,7 @@ pub fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{Plane, closest_on_triangle};
+    use super::{Plane, closest_on_fan, closest_on_triangle};
     use crate::metrics::surface::rng;
     use glam::DVec3;
     use rand::RngExt;
@@ -151,6 +226,51 @@ mod tests {
         assert!(
             ruled_out > clearly_farther / 2,
             "{ruled_out} of {clearly_farther}"
+        );
+    }
+
+    /// The fan's point is the nearest of its triangles' closest points, bit for bit, on
+    /// random fans around points near them, with degenerate triangles (repeated and
+    /// coincident corners) among them, and rings of one and two vertices.
+    #[test]
+    fn fan_is_its_triangles_bit_for_bit() {
+        let mut r = rng(29);
+        for round in 0..20_000 {
+            let k = 1 + round % 9;
+            let mut point = |s: f64| {
+                DVec3::new(
+                    r.random_range(-s..s),
+                    r.random_range(-s..s),
+                    r.random_range(-s..s),
+                )
+            };
+            let a = DVec3::new(100.0, -50.0, 3.0) + point(1.0);
+            let mut ring: Vec<DVec3> = (0..k).map(|_| a + point(1.0)).collect();
+            if round % 7 == 0 && k > 2 {
+                ring[1] = ring[0];
+            }
+            if round % 11 == 0 {
+                ring[0] = a;
+            }
+            let p = a + point(1.5);
+            let mut expected = (f64::INFINITY, p);
+            for i in 0..k {
+                let (q, _) = closest_on_triangle(p, a, ring[i], ring[(i + 1) % k]);
+                let d = (p - q).length_squared();
+                if d < expected.0 {
+                    expected = (d, q);
+                }
+            }
+            let got = closest_on_fan(p, a, k, |i| ring[i]);
+            assert_eq!(
+                got.to_array().map(f64::to_bits),
+                expected.1.to_array().map(f64::to_bits),
+                "round {round}"
+            );
+        }
+        assert_eq!(
+            closest_on_fan(DVec3::ONE, DVec3::ZERO, 0, |_| DVec3::X),
+            DVec3::ONE
         );
     }
 

@@ -14,4 +14,4 @@ pub mod bvh;
 pub mod closest;
 pub mod timing;
 
-pub use closest::{closest_on_segment, closest_on_triangle, segment_distance};
+pub use closest::{closest_on_fan, closest_on_segment, closest_on_triangle, segment_distance};

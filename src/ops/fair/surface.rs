@@ -13,7 +13,7 @@ use super::guards::{
 use super::neighbourhood::Neighbourhood;
 use super::positive;
 use super::schedule::Sweep;
-use crate::geom::closest_on_triangle;
+use crate::geom::closest_on_fan;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
@@ -290,22 +290,7 @@ impl Interior<'_> {
             return c;
         };
         let ring = self.nb.ring(v);
-        let k = ring.len();
-        let a = input[v];
-        let mut best = (f64::INFINITY, c);
-        for i in 0..k {
-            let (p, _) = closest_on_triangle(
-                c,
-                a,
-                input[ring[i] as usize],
-                input[ring[(i + 1) % k] as usize],
-            );
-            let d = (p - c).length_squared();
-            if d < best.0 {
-                best = (d, p);
-            }
-        }
-        best.1
+        closest_on_fan(c, input[v], ring.len(), |i| input[ring[i] as usize])
     }
 }
 
