@@ -225,6 +225,11 @@ impl<'a> TriangleBvh<'a> {
         self.order.is_empty()
     }
 
+    /// Triangles indexed.
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
     /// Bytes held by the index (not counting the mesh).
     pub fn heap_bytes(&self) -> usize {
         self.nodes.capacity() * std::mem::size_of::<Node>()

@@ -158,6 +158,24 @@ impl<'a> PreparedReference<'a> {
         })
     }
 
+    /// [`PreparedReference::new`] with the reference's index built already (`index`, over
+    /// the reference): only the samples are made.
+    pub fn with_index(index: surface::SurfaceIndex<'a>, options: &MetricsOptions) -> Self {
+        let start = Instant::now();
+        let samples = surface::sample_surface(
+            index.mesh(),
+            options.samples,
+            distance::reference_seed(options.seed),
+        );
+        PreparedReference {
+            options: *options,
+            index,
+            samples,
+            topology: None,
+            prepare_ms: start.elapsed().as_secs_f64() * 1e3,
+        }
+    }
+
     /// [`PreparedReference::new`] and the reference's topology too, side by side: the
     /// topology is built on one thread (~160 ms for a 400k-triangle scan), beside the index
     /// and the samples. For when its ~40 MB do not meet a memory peak (the runner uses it

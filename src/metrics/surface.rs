@@ -125,6 +125,12 @@ impl<'a> SurfaceIndex<'a> {
         self.mesh
     }
 
+    /// The closest-point tree, when it holds every triangle of the mesh (none has zero
+    /// area), so that it answers as a tree over the whole mesh does (the texture follow's).
+    pub fn whole_mesh_tree(&self) -> Option<&TriangleBvh<'a>> {
+        (self.bvh.len() == self.mesh.triangles.len()).then_some(&self.bvh)
+    }
+
     /// The exact closest point of the surface to `p`.
     pub fn closest(&self, p: DVec3) -> Closest {
         self.to_closest(p, self.bvh.search(p, None))

@@ -106,6 +106,19 @@ pub(crate) fn uv_at(mesh: &Mesh, hit: &TriangleHit) -> Option<DVec2> {
 /// its vertices (same wedges and triangles; `before_positions` are its old positions: only
 /// those are kept, not a copy of the mesh). Does nothing to an untextured mesh.
 pub fn follow(mesh: &mut Mesh, before_positions: Vec<DVec3>) -> FollowReport {
+    follow_with(mesh, before_positions, |_| None)
+}
+
+/// [`follow`] with a closest-point index over the surface as it was from `index`, when it
+/// has one: `index` gets the mesh as it was (at `before_positions`) and may answer with an
+/// index of its own over the same triangles at the same positions, all of them indexed (a
+/// copy of the surface the caller keeps for more queries). It is asked beside the reads
+/// that do not need it, as building the follow's own index would be.
+pub fn follow_with<'t>(
+    mesh: &mut Mesh,
+    before_positions: Vec<DVec3>,
+    index: impl FnOnce(&Mesh) -> Option<&'t TriangleBvh<'t>> + Send,
+) -> FollowReport {
     if !mesh.has_texcoords()
         || mesh.triangles.is_empty()
         || before_positions.len() != mesh.positions.len()
@@ -116,20 +129,34 @@ pub fn follow(mesh: &mut Mesh, before_positions: Vec<DVec3>) -> FollowReport {
     }
     // The mesh as it was, and the new positions beside it.
     let moved = std::mem::replace(&mut mesh.positions, before_positions);
-    let (updates, across) = read_back(mesh, &moved);
+    let (updates, across) = read_back(mesh, &moved, index);
     mesh.positions = moved;
     apply(mesh, updates, across)
 }
 
 /// Per wedge of `before`, the texture coordinates at its vertex's new position (or none),
 /// and how many came from the corner's own triangles (across a seam).
-fn read_back(before: &Mesh, moved: &[DVec3]) -> (Vec<Option<DVec2>>, usize) {
+fn read_back<'t>(
+    before: &Mesh,
+    moved: &[DVec3],
+    index: impl FnOnce(&Mesh) -> Option<&'t TriangleBvh<'t>> + Send,
+) -> (Vec<Option<DVec2>>, usize) {
     // The charts and the triangles of each wedge (their chart is the wedge's: a wedge never
     // spans a seam) are sequential; they are made beside the tree, whose build is parallel.
-    let ((chart, around), bvh) = rayon::join(
+    let ((chart, around), (given, own)) = rayon::join(
         || rayon::join(|| charts(before), || WedgeTriangles::of(before)),
-        || TriangleBvh::new(before, (0..before.triangles.len() as u32).collect()),
+        || match index(before) {
+            Some(tree) => (Some(tree), None),
+            None => (
+                None,
+                Some(TriangleBvh::new(
+                    before,
+                    (0..before.triangles.len() as u32).collect(),
+                )),
+            ),
+        },
     );
+    let bvh = given.or(own.as_ref()).expect("an index, given or built");
     // Per wedge: new texture coordinates (or none) and whether it went across a seam.
     let updates: Vec<Option<(DVec2, bool)>> = (0..before.wedges.len())
         .into_par_iter()

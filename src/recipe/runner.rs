@@ -10,8 +10,10 @@ use crate::metrics::TextureCache;
 pub use crate::metrics::schedule::metrics_value;
 use crate::metrics::schedule::{FinalReference, ReferenceSchedule};
 use crate::ops;
+use crate::ops::texture_follow::FollowReport;
 use crate::preview::{self, Preview};
 use crate::report::StepReport;
+use glam::DVec3;
 use serde_json::Value;
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
@@ -206,6 +208,12 @@ fn seam_reference_of(recipe: &Recipe, mesh: &Mesh) -> Option<Arc<Mesh>> {
 trait StepHooks {
     fn before(&mut self, _index: usize, _step: &Step, _mesh: &Mesh, _cx: &mut StepContext) {}
     fn after(&mut self, _index: usize, _step: &Step, _mesh: &Mesh) {}
+
+    /// Carries the texture of `mesh` from the surface at `before` to where its vertices
+    /// are now, after step `index` ([`TextureFollow`]).
+    fn follow(&mut self, _index: usize, mesh: &mut Mesh, before: Vec<DVec3>) -> FollowReport {
+        ops::texture_follow::follow(mesh, before)
+    }
 }
 
 struct NoHooks;
@@ -243,6 +251,18 @@ impl StepHooks for MetricsHooks<'_, '_, '_> {
             self.schedule.reference_cropped(mesh);
         }
     }
+
+    /// Through the metrics' index over the reference when the surface before the run is
+    /// the reference (see [`ReferenceSchedule::input_index`]).
+    fn follow(&mut self, index: usize, mesh: &mut Mesh, before: Vec<DVec3>) -> FollowReport {
+        let crop_follows = self.recipe.steps[index + 1..]
+            .iter()
+            .any(|s| s.as_recipe_step().removes_surface());
+        let schedule = &mut self.schedule;
+        ops::texture_follow::follow_with(mesh, before, |before| {
+            schedule.input_index(before, crop_follows)
+        })
+    }
 }
 
 /// The texture is carried along the surface once per run of vertex-moving steps (relax,
@@ -253,7 +273,7 @@ impl StepHooks for MetricsHooks<'_, '_, '_> {
 /// those see the texture where it belongs.
 #[derive(Default)]
 struct TextureFollow {
-    from: Option<Vec<glam::DVec3>>,
+    from: Option<Vec<DVec3>>,
 }
 
 impl TextureFollow {
@@ -266,10 +286,16 @@ impl TextureFollow {
     /// After a step: follows unless `unseen_run_goes_on` (the run of vertex-moving steps
     /// goes on and nothing measures the mesh in between), adding `texture_follow` to the
     /// step's figures.
-    fn end(&mut self, mesh: &mut Mesh, unseen_run_goes_on: bool, figures: &mut Value) {
+    fn end(
+        &mut self,
+        mesh: &mut Mesh,
+        unseen_run_goes_on: bool,
+        figures: &mut Value,
+        follow: impl FnOnce(&mut Mesh, Vec<DVec3>) -> FollowReport,
+    ) {
         if !unseen_run_goes_on && let (Some(from), Value::Object(map)) = (self.from.take(), figures)
         {
-            let report = ops::texture_follow::follow(mesh, from);
+            let report = follow(mesh, from);
             map.insert("texture_follow".into(), step::figures(report));
         }
     }
@@ -314,7 +340,7 @@ fn run_steps_with(
     }
     for (i, step) in recipe.steps.iter().enumerate() {
         hooks.before(i, step, mesh, &mut cx);
-        let report = run_one(recipe, i, mesh, stages, &mut cx, &mut follow)?;
+        let report = run_one(recipe, i, mesh, stages, &mut cx, &mut follow, hooks)?;
         hooks.after(i, step, mesh);
         crate::memory::release_freed();
         reports.push(report);
@@ -331,6 +357,7 @@ fn run_one(
     stages: Stages<'_>,
     cx: &mut StepContext,
     follow: &mut TextureFollow,
+    hooks: &mut dyn StepHooks,
 ) -> Result<StepReport, StepError> {
     let step = &recipe.steps[i];
     let next = recipe.steps.get(i + 1).map(Step::as_recipe_step);
@@ -358,7 +385,9 @@ fn run_one(
     // The run of vertex-moving steps goes on and nothing measures the mesh in between: the
     // texture and the scan's own normals follow once, after the run's last step.
     let unseen_run_goes_on = next.is_some_and(|s| s.moves_vertices()) && before.is_none();
-    follow.end(mesh, unseen_run_goes_on, &mut figures);
+    follow.end(mesh, unseen_run_goes_on, &mut figures, |mesh, before| {
+        hooks.follow(i, mesh, before)
+    });
     if step.as_recipe_step().moves_vertices() && !unseen_run_goes_on {
         refresh_scan_normals(mesh, &mut figures);
     }
@@ -424,6 +453,43 @@ mod tests {
         let fresh = metrics_value(&mesh, &input, &r.metrics.options());
         assert_eq!(out.metrics["topology"], fresh["topology"]);
         assert!(out.metrics["topology"]["crack_distance"].as_f64().unwrap() > 0.0);
+    }
+
+    /// The texture follow reads the input through the final metrics' index (one index
+    /// for both): the mesh, its texture coordinates and the metrics are those of a run
+    /// where each builds its own.
+    #[test]
+    fn one_input_index_for_the_texture_follow_and_the_metrics() {
+        let r = recipe(
+            "[metrics]\nsamples = 3000\n[[step]]\nkind = \"relax\"\nmax_iterations = 4\n[[step]]\nkind = \"fair\"\nmax_iterations = 3\n[[step]]\nkind = \"normals\"\n",
+        );
+        let mut input = crate::mesh::shapes::grid(12, 10);
+        for (i, p) in input.positions.iter_mut().enumerate() {
+            p.z += 0.15 * (i as f64 * 1.7).sin();
+            p.x += 0.1 * (i as f64 * 2.3).cos();
+        }
+        let mut shared = input.clone();
+        let out = run_recipe(&r, &mut shared, &InputLimits::default(), &NoProgress, 0, 1).unwrap();
+        let mut separate = input.clone();
+        let steps = run_steps(&r, &mut separate, &NoProgress, 0, 1).unwrap();
+        assert!(shared.positions != input.positions, "the steps moved it");
+        assert!(
+            steps[1].figures["texture_follow"]["corners"]
+                .as_u64()
+                .unwrap()
+                > 0
+        );
+        assert_eq!(shared.positions, separate.positions);
+        assert_eq!(shared.texcoords, separate.texcoords);
+        assert_eq!(shared.wedges, separate.wedges);
+        assert_eq!(
+            out.steps[1].figures["texture_follow"],
+            steps[1].figures["texture_follow"]
+        );
+        let fresh = metrics_value(&separate, &input, &r.metrics.options());
+        for key in ["distance", "texture", "normals"] {
+            assert_eq!(out.metrics[key], fresh[key], "{key}");
+        }
     }
 
     #[test]
