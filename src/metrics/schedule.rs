@@ -91,25 +91,28 @@ impl<'scope, 'env> ReferenceSchedule<'scope, 'env> {
         }));
     }
 
-    /// The reference's closest-point index, built now and kept for the final metrics, when
-    /// the texture follow can read the surface as it was through it: the surface before a
-    /// run of vertex-moving steps, `before`, is the reference itself when no step has
-    /// changed it yet (its texture coordinates are read from `before`, not the reference). Then the run builds one index over the scan
-    /// instead of two (a 400k-triangle tree is 22 ms on two cores), and holds it, about 13 MB,
-    /// from there to the end. `None` (the follow builds its own) when the metrics are off,
-    /// the reference is being prepared already, a crop may still change it (`crop_follows`),
-    /// the surfaces differ, or the reference has triangles without area (which its index
-    /// leaves out and the follow's does not).
+    /// The reference's closest-point index (built at the first call and kept for the final
+    /// metrics) when the texture follow can read the surface as it was through it: when
+    /// that surface, `before`, is the reference itself (the run of vertex-moving steps
+    /// started before any step changed the mesh; its texture coordinates are still read from
+    /// `before`). Then the run builds one index over the scan instead of two (a
+    /// 400k-triangle tree is 22 ms on two cores) and holds it, about 13 MB, to the end.
+    /// `None` (the follow builds its own) when the metrics are off, the reference is being
+    /// prepared already, a crop may still change it (`crop_follows`), the surfaces differ
+    /// (a later run, after a remesh or a decimation: checked at every call), or the
+    /// reference has triangles without area (which its index leaves out and the follow's
+    /// does not).
     pub fn input_index(&mut self, before: &Mesh, crop_follows: bool) -> Option<&TriangleBvh<'env>> {
         // The same triangles over the same vertices at the same positions (their wedges may
         // differ: the scan's own normals are dropped from the steps' mesh when a step writes
         // fresh ones).
-        let same_surface = || {
-            super::same_connectivity(&self.reference, before)
-                && self.reference.positions == before.positions
-        };
+        let same_surface = super::same_connectivity(&self.reference, before)
+            && self.reference.positions == before.positions;
+        if self.cropped || crop_follows || !same_surface {
+            return None;
+        }
         if self.index.is_none() {
-            if !self.can_prepare_early() || self.cropped || crop_follows || !same_surface() {
+            if !self.can_prepare_early() {
                 return None;
             }
             let reference: &'env Mesh = self.slot.get_or_init(|| Arc::clone(&self.reference));
@@ -278,10 +281,13 @@ mod tests {
         let tree = s.input_index(&input, false).expect("the same surface");
         assert_eq!(tree.len(), input.triangles.len());
         assert!(s.index.is_some());
-        assert!(matches!(s.finish().prepared, Some(Ok(_))));
-
+        // A later run of vertex-moving steps starts from another surface: not through it.
         let mut moved = (*input).clone();
         moved.positions[7].z += 0.01;
+        assert!(s.input_index(&moved, false).is_none());
+        assert!(s.input_index(&input, false).is_some());
+        assert!(matches!(s.finish().prepared, Some(Ok(_))));
+
         let slot = OnceLock::new();
         assert!(
             schedule(&input, true, &slot)

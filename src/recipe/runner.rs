@@ -457,38 +457,37 @@ mod tests {
 
     /// The texture follow reads the input through the final metrics' index (one index
     /// for both): the mesh, its texture coordinates and the metrics are those of a run
-    /// where each builds its own.
+    /// where each builds its own; and a second run of vertex-moving steps, after a remesh,
+    /// reads its own surface, not the input.
     #[test]
     fn one_input_index_for_the_texture_follow_and_the_metrics() {
-        let r = recipe(
-            "[metrics]\nsamples = 3000\n[[step]]\nkind = \"relax\"\nmax_iterations = 4\n[[step]]\nkind = \"fair\"\nmax_iterations = 3\n[[step]]\nkind = \"normals\"\n",
-        );
+        let fairing = "[[step]]\nkind = \"relax\"\nmax_iterations = 4\n[[step]]\nkind = \"fair\"\nmax_iterations = 3\n";
+        let later = "[[step]]\nkind = \"remesh\"\nedge_fraction = 0.08\n[[step]]\nkind = \"smooth\"\nmethod = \"laplace\"\niterations = 3\n";
         let mut input = crate::mesh::shapes::grid(12, 10);
         for (i, p) in input.positions.iter_mut().enumerate() {
             p.z += 0.15 * (i as f64 * 1.7).sin();
             p.x += 0.1 * (i as f64 * 2.3).cos();
         }
-        let mut shared = input.clone();
-        let out = run_recipe(&r, &mut shared, &InputLimits::default(), &NoProgress, 0, 1).unwrap();
-        let mut separate = input.clone();
-        let steps = run_steps(&r, &mut separate, &NoProgress, 0, 1).unwrap();
-        assert!(shared.positions != input.positions, "the steps moved it");
-        assert!(
-            steps[1].figures["texture_follow"]["corners"]
-                .as_u64()
-                .unwrap()
-                > 0
-        );
-        assert_eq!(shared.positions, separate.positions);
-        assert_eq!(shared.texcoords, separate.texcoords);
-        assert_eq!(shared.wedges, separate.wedges);
-        assert_eq!(
-            out.steps[1].figures["texture_follow"],
-            steps[1].figures["texture_follow"]
-        );
-        let fresh = metrics_value(&separate, &input, &r.metrics.options());
-        for key in ["distance", "texture", "normals"] {
-            assert_eq!(out.metrics[key], fresh[key], "{key}");
+        for steps in [fairing.to_string(), format!("{fairing}{later}")] {
+            let r = recipe(&format!("[metrics]\nsamples = 3000\n{steps}"));
+            let mut shared = input.clone();
+            let out =
+                run_recipe(&r, &mut shared, &InputLimits::default(), &NoProgress, 0, 1).unwrap();
+            let mut separate = input.clone();
+            let reports = run_steps(&r, &mut separate, &NoProgress, 0, 1).unwrap();
+            assert!(shared.positions != input.positions, "the steps moved it");
+            let corners = &reports[1].figures["texture_follow"]["corners"];
+            assert!(corners.as_u64().unwrap() > 0);
+            assert_eq!(shared.positions, separate.positions);
+            assert_eq!(shared.texcoords, separate.texcoords);
+            assert_eq!(shared.wedges, separate.wedges);
+            for (a, b) in out.steps.iter().zip(&reports) {
+                assert_eq!(a.figures["texture_follow"], b.figures["texture_follow"]);
+            }
+            let fresh = metrics_value(&separate, &input, &r.metrics.options());
+            for key in ["distance", "texture", "normals"] {
+                assert_eq!(out.metrics[key], fresh[key], "{key}");
+            }
         }
     }
 
