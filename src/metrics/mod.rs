@@ -112,7 +112,7 @@ pub fn compare_with_cache(
     options: &MetricsOptions,
     cache: &mut TextureCache,
 ) -> Result<FinalMetrics, MetricsError> {
-    let prepared = PreparedReference::with_topology(reference, options)?;
+    let prepared = PreparedReference::with_topology(reference, options, None)?;
     compare_prepared(result, &prepared, cache)
 }
 
@@ -131,15 +131,29 @@ pub struct PreparedReference<'a> {
 }
 
 impl<'a> PreparedReference<'a> {
-    pub fn new(reference: &'a Mesh, options: &MetricsOptions) -> Result<Self, MetricsError> {
+    /// `index`, when given, is the reference's index built already (over `reference`,
+    /// [`schedule::ReferenceSchedule::input_index`]): only the samples are made then.
+    pub fn new(
+        reference: &'a Mesh,
+        options: &MetricsOptions,
+        index: Option<surface::SurfaceIndex<'a>>,
+    ) -> Result<Self, MetricsError> {
         let start = Instant::now();
+        debug_assert!(
+            index
+                .as_ref()
+                .is_none_or(|i| std::ptr::eq(i.mesh(), reference))
+        );
         // The reference's topology is not prepared here but beside the result's in
         // [`compare_prepared`]: its full form is ~40 MB for a 400k-triangle scan, and the
         // preparation runs beside the decimation, which is the memory peak of the face-scan
         // recipe (issue #8's budget).
         // The index (parallel) beside the samples (one thread): neither reads the other.
         let (index, samples) = rayon::join(
-            || surface::SurfaceIndex::new(reference, "reference"),
+            || match index {
+                Some(index) => Ok(index),
+                None => surface::SurfaceIndex::new(reference, "reference"),
+            },
             || {
                 surface::sample_surface(
                     reference,
@@ -158,24 +172,6 @@ impl<'a> PreparedReference<'a> {
         })
     }
 
-    /// [`PreparedReference::new`] with the reference's index built already (`index`, over
-    /// the reference): only the samples are made.
-    pub fn with_index(index: surface::SurfaceIndex<'a>, options: &MetricsOptions) -> Self {
-        let start = Instant::now();
-        let samples = surface::sample_surface(
-            index.mesh(),
-            options.samples,
-            distance::reference_seed(options.seed),
-        );
-        PreparedReference {
-            options: *options,
-            index,
-            samples,
-            topology: None,
-            prepare_ms: start.elapsed().as_secs_f64() * 1e3,
-        }
-    }
-
     /// [`PreparedReference::new`] and the reference's topology too, side by side: the
     /// topology is built on one thread (~160 ms for a 400k-triangle scan), beside the index
     /// and the samples. For when its ~40 MB do not meet a memory peak (the runner uses it
@@ -183,11 +179,12 @@ impl<'a> PreparedReference<'a> {
     pub fn with_topology(
         reference: &'a Mesh,
         options: &MetricsOptions,
+        index: Option<surface::SurfaceIndex<'a>>,
     ) -> Result<Self, MetricsError> {
         let start = Instant::now();
         let (topology, prepared) = rayon::join(
             || topology::ReferenceTopology::of(reference, options.crack_distance_factor),
-            || PreparedReference::new(reference, options),
+            || PreparedReference::new(reference, options, index),
         );
         Ok(PreparedReference {
             topology: Some(topology),

@@ -85,10 +85,7 @@ impl<'scope, 'env> ReferenceSchedule<'scope, 'env> {
         let reference = self.slot.get_or_init(|| Arc::clone(&self.reference));
         let options = self.options;
         let index = self.index.take();
-        self.preparing = Some(scope.spawn(move || match index {
-            Some(index) => Ok(PreparedReference::with_index(index, &options)),
-            None => prepare_beside(reference, &options),
-        }));
+        self.preparing = Some(scope.spawn(move || prepare_beside(reference, &options, index)));
     }
 
     /// The reference's closest-point index (built at the first call and kept for the final
@@ -106,13 +103,16 @@ impl<'scope, 'env> ReferenceSchedule<'scope, 'env> {
         // The same triangles over the same vertices at the same positions (their wedges may
         // differ: the scan's own normals are dropped from the steps' mesh when a step writes
         // fresh ones).
+        if !self.metrics || self.cropped || crop_follows {
+            return None;
+        }
         let same_surface = super::same_connectivity(&self.reference, before)
             && self.reference.positions == before.positions;
-        if self.cropped || crop_follows || !same_surface {
+        if !same_surface {
             return None;
         }
         if self.index.is_none() {
-            if !self.can_prepare_early() {
+            if self.preparing.is_some() {
                 return None;
             }
             let reference: &'env Mesh = self.slot.get_or_init(|| Arc::clone(&self.reference));
@@ -155,23 +155,10 @@ impl<'scope, 'env> ReferenceSchedule<'scope, 'env> {
                 (Some(thread), _) => thread
                     .join()
                     .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
-                (None, Some(_)) => match self.index {
-                    Some(index) => Ok(PreparedReference::with_index(index, &options)),
-                    None => PreparedReference::new(reference, &options),
-                },
+                (None, Some(_)) => PreparedReference::new(reference, &options, self.index),
                 // After the steps the memory peak is past: the reference's topology is
                 // prepared too, beside its index.
-                (None, None) => match self.index {
-                    Some(index) => {
-                        let factor = options.crack_distance_factor;
-                        let (topology, prepared) = rayon::join(
-                            || ReferenceTopology::of(reference, factor),
-                            || PreparedReference::with_index(index, &options),
-                        );
-                        Ok(prepared.with_reference_topology(topology))
-                    }
-                    None => PreparedReference::with_topology(reference, &options),
-                },
+                (None, None) => PreparedReference::with_topology(reference, &options, self.index),
             };
             prepared.map(|p| match known_topology {
                 Some(t) => p.with_reference_topology(t),
@@ -234,11 +221,15 @@ impl FinalReference<'_> {
 
 /// Prepares the reference's half of the metrics on fewer threads than the machine has:
 /// it runs beside a step whose sequential loop keeps one core busy.
-fn prepare_beside<'a>(reference: &'a Mesh, options: &MetricsOptions) -> Preparation<'a> {
+fn prepare_beside<'a>(
+    reference: &'a Mesh,
+    options: &MetricsOptions,
+    index: Option<SurfaceIndex<'a>>,
+) -> Preparation<'a> {
     let threads = rayon::current_num_threads().saturating_sub(1).max(1);
     match rayon::ThreadPoolBuilder::new().num_threads(threads).build() {
-        Ok(pool) => pool.install(|| PreparedReference::new(reference, options)),
-        Err(_) => PreparedReference::new(reference, options),
+        Ok(pool) => pool.install(|| PreparedReference::new(reference, options, index)),
+        Err(_) => PreparedReference::new(reference, options, index),
     }
 }
 
