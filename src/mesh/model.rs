@@ -7,6 +7,7 @@
 
 use super::wedges::WedgeInterner;
 use glam::{DVec2, DVec3};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -222,12 +223,17 @@ impl Mesh {
         if self.triangles.is_empty() {
             return 0.0;
         }
-        let sum: f64 = (0..self.triangles.len())
+        // The perimeters in parallel (three square roots each), then summed on one thread
+        // in triangle order: the same sum, bit for bit, as a sequential loop. The fairing
+        // computes this at the start of every step, where the other core would wait.
+        let perimeters: Vec<f64> = (0..self.triangles.len())
+            .into_par_iter()
             .map(|t| {
                 let [a, b, c] = self.triangle_positions(t);
                 a.distance(b) + b.distance(c) + c.distance(a)
             })
-            .sum();
+            .collect();
+        let sum: f64 = perimeters.iter().sum();
         sum / (3 * self.triangles.len()) as f64
     }
 

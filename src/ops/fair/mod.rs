@@ -31,6 +31,7 @@ use crate::ops::border::{self, Border};
 use glam::DVec3;
 use guards::{FixedCounts, GuardCounts};
 use neighbourhood::Neighbourhood;
+use rayon::prelude::*;
 use schedule::{Phase, PhaseParams, RunStats, StopIn};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -365,18 +366,31 @@ impl Connectivity {
     }
 }
 
-/// A hash of the triangles' vertex indices in order (FNV-1a over the indices; ~3 ms for
-/// 400k triangles). Positions, wedges and texture coordinates do not enter: the rings and
-/// chains depend on the vertex indices alone.
+/// A hash of the triangles' vertex indices in order: FNV-1a over each block of
+/// [`FINGERPRINT_BLOCK`] triangles, in parallel, then over the blocks' hashes in order (the
+/// same value whatever the thread count). Positions, wedges and texture coordinates do not
+/// enter: the rings and chains depend on the vertex indices alone. On one thread it took
+/// ~3 ms for 400k triangles at the start of every `relax` and `fair`, with the other core
+/// idle.
 fn triangle_fingerprint(mesh: &Mesh) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for t in 0..mesh.triangles.len() {
-        for v in mesh.triangle_vertices(t) {
-            h = (h ^ u64::from(v)).wrapping_mul(0x0000_0100_0000_01b3);
-        }
+    const BASIS: u64 = 0xcbf2_9ce4_8422_2325;
+    fn fnv(h: u64, x: u64) -> u64 {
+        (h ^ x).wrapping_mul(0x0000_0100_0000_01b3)
     }
-    h
+    let blocks: Vec<u64> = (0..mesh.triangles.len().div_ceil(FINGERPRINT_BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let end = ((b + 1) * FINGERPRINT_BLOCK).min(mesh.triangles.len());
+            (b * FINGERPRINT_BLOCK..end)
+                .flat_map(|t| mesh.triangle_vertices(t))
+                .fold(BASIS, |h, v| fnv(h, u64::from(v)))
+        })
+        .collect();
+    blocks.into_iter().fold(BASIS, fnv)
 }
+
+/// Triangles per block of [`triangle_fingerprint`].
+const FINGERPRINT_BLOCK: usize = 1 << 14;
 
 /// Runs a plan on a mesh. Never fails: degenerate or non-manifold parts are held still.
 pub fn run(mesh: &mut Mesh, plan: &Plan) -> FairReport {
