@@ -364,6 +364,7 @@ fn merge_chunks(results: Vec<ChunkResult<Chunk>>) -> Result<Option<Geometry>> {
         total(|g| g.texcoords.len()),
         total(|g| g.normals.len()),
     ];
+    let faces = total(|g| g.faces.len());
     for (_, c) in &chunks {
         let beyond = c.max_index.iter().zip(counts);
         if beyond
@@ -373,13 +374,19 @@ fn merge_chunks(results: Vec<ChunkResult<Chunk>>) -> Result<Option<Geometry>> {
             return Ok(None);
         }
     }
-    let mut g = Geometry {
-        positions: Vec::with_capacity(counts[0]),
-        texcoords: Vec::with_capacity(counts[1]),
-        normals: Vec::with_capacity(counts[2]),
-        faces: Vec::with_capacity(total(|g| g.faces.len())),
-        ..Default::default()
+    // The first chunk's arrays are kept and the others appended: a large array grows in
+    // place (glibc moves the pages of a mapped block, it does not copy them), so only the
+    // later chunks' data is copied (the first holds most of the vertices of a file that
+    // lists them first).
+    let mut chunks = chunks.into_iter();
+    let Some((_, first)) = chunks.next() else {
+        return Ok(Some(Geometry::default()));
     };
+    let mut g = first.out;
+    g.positions.reserve_exact(counts[0] - g.positions.len());
+    g.texcoords.reserve_exact(counts[1] - g.texcoords.len());
+    g.normals.reserve_exact(counts[2] - g.normals.len());
+    g.faces.reserve_exact(faces - g.faces.len());
     for (line_offset, c) in chunks {
         let face_offset = g.faces.len();
         let o = c.out;
@@ -398,6 +405,11 @@ fn merge_chunks(results: Vec<ChunkResult<Chunk>>) -> Result<Option<Geometry>> {
             *g.skipped.entry(k).or_default() += n;
         }
     }
+    // No room left over from the first chunk's growth: the arrays live on in the mesh.
+    g.positions.shrink_to_fit();
+    g.texcoords.shrink_to_fit();
+    g.normals.shrink_to_fit();
+    g.faces.shrink_to_fit();
     Ok(Some(g))
 }
 
