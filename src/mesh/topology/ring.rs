@@ -48,6 +48,17 @@ impl Topology {
     /// returns whether the fan is closed, `None` where `ordered_ring` gives `None` (the
     /// buffers' contents are then unspecified).
     pub fn ordered_ring_into(&self, v: u32, buffers: &mut RingBuffers) -> Option<bool> {
+        self.ring_into(v, buffers, true)
+    }
+
+    /// [`Topology::ordered_ring_into`], with the closed fans' scan (`closed_scan`) or
+    /// through the sorted spokes for every fan (the tests compare the two).
+    pub(super) fn ring_into(
+        &self,
+        v: u32,
+        buffers: &mut RingBuffers,
+        closed_scan: bool,
+    ) -> Option<bool> {
         let RingBuffers {
             ahead,
             behind,
@@ -65,6 +76,26 @@ impl Topology {
             return None;
         }
         self.fan_sides(v, corners, ahead, behind)?;
+        if closed_scan && every_spoke_shared(ahead, behind) {
+            // A closed fan (every spoke on two triangles or more): the walk below from
+            // triangle 0, finding each next triangle by scanning the slots in order, which
+            // is the first slot of the sorted spokes' run (the same ring, without the sort
+            // and the searches; most vertices of a scan, where the sort was a third of
+            // building the fairing's neighbourhood).
+            let scan = |s: u32, slot: u32| {
+                (0..ahead.len() as u32)
+                    .find(|&j| j != slot && (ahead[j as usize] == s || behind[j as usize] == s))
+            };
+            return walk(
+                corners,
+                ahead,
+                behind,
+                (ahead[0], 0),
+                scan,
+                vertices,
+                triangles,
+            );
+        }
         // (spoke vertex, triangle slot), sorted: the triangles on edge (v, spoke) are adjacent.
         spokes.extend(
             (0..corners.len() as u32)
@@ -72,13 +103,16 @@ impl Topology {
         );
         spokes.sort_unstable();
         let start = fan_start(spokes, ahead)?;
-        let fan = Fan {
-            corners,
-            ahead,
-            behind,
-            spokes,
+        // The triangle slots on edge (v, s): a run of the sorted spokes.
+        let on_spoke = |s: u32, slot: u32| {
+            let from = spokes.partition_point(|&(x, _)| x < s);
+            spokes[from..]
+                .iter()
+                .take_while(|&&(x, _)| x == s)
+                .map(|&(_, j)| j)
+                .find(|&j| j != slot)
         };
-        fan.walk(start, vertices, triangles)
+        walk(corners, ahead, behind, start, on_spoke, vertices, triangles)
     }
 
     /// Triangle i (the i-th corner at `v`) is (v, `ahead[i]`, `behind[i]`) in its
@@ -127,59 +161,56 @@ fn fan_start(spokes: &[(u32, u32)], ahead: &[u32]) -> Option<(u32, u32)> {
     })
 }
 
-/// The triangles around one vertex, as [`Topology::ordered_ring_into`] gathers them.
-struct Fan<'a> {
-    corners: &'a [u32],
-    ahead: &'a [u32],
-    behind: &'a [u32],
-    /// (spoke vertex, triangle slot), sorted.
-    spokes: &'a [(u32, u32)],
+/// Whether every spoke of the fan (each `ahead` and `behind` vertex) is on two triangles
+/// or more: no boundary spoke, so [`fan_start`] starts at triangle 0. Counted by pairs
+/// (a dozen triangles at most, else `false` and the sorted path decides).
+fn every_spoke_shared(ahead: &[u32], behind: &[u32]) -> bool {
+    const MOST: usize = 12;
+    let n = ahead.len();
+    if n > MOST {
+        return false;
+    }
+    let on_another = |s: u32, i: usize| (0..n).any(|j| j != i && (ahead[j] == s || behind[j] == s));
+    (0..n).all(|i| on_another(ahead[i], i) && on_another(behind[i], i))
 }
 
-impl Fan<'_> {
-    /// The triangle slots on edge (v, `s`).
-    fn on_spoke(&self, s: u32) -> &[(u32, u32)] {
-        let start = self.spokes.partition_point(|&(x, _)| x < s);
-        let end = self.spokes.partition_point(|&(x, _)| x <= s);
-        &self.spokes[start..end]
-    }
-
-    /// Walks from `start` across each triangle to the next one on the far spoke, until an
-    /// open fan's other border spoke or back at the start; returns whether the fan is
-    /// closed, `None` where the walk missed a triangle (more than one fan).
-    fn walk(
-        &self,
-        (first_spoke, first_slot): (u32, u32),
-        vertices: &mut Vec<u32>,
-        triangles: &mut Vec<u32>,
-    ) -> Option<bool> {
-        let (corners, ahead, behind) = (self.corners, self.ahead, self.behind);
-        vertices.push(first_spoke);
-        triangles.push(corners[first_slot as usize] / 3);
-        let (mut slot, mut spoke) = (first_slot, first_spoke);
-        loop {
-            let i = slot as usize;
-            spoke = if ahead[i] == spoke {
-                behind[i]
-            } else {
-                ahead[i]
-            };
-            vertices.push(spoke);
-            let Some(&(_, next_slot)) = self.on_spoke(spoke).iter().find(|&&(_, j)| j != slot)
-            else {
-                break; // open fan: reached the other boundary spoke
-            };
-            if next_slot == first_slot {
-                vertices.pop(); // closed fan: back at the first spoke
-                break;
-            }
-            if triangles.len() == corners.len() {
-                return None; // cannot happen for a single fan; never loop
-            }
-            triangles.push(corners[next_slot as usize] / 3);
-            slot = next_slot;
+/// Walks from `start` (spoke, triangle slot) across each triangle to the next one on the
+/// far spoke (`next(spoke, slot)`: the first other slot on that spoke, in slot order),
+/// until an open fan's other border spoke or back at the start; returns whether the fan is
+/// closed, `None` where the walk missed a triangle (more than one fan).
+fn walk(
+    corners: &[u32],
+    ahead: &[u32],
+    behind: &[u32],
+    (first_spoke, first_slot): (u32, u32),
+    next: impl Fn(u32, u32) -> Option<u32>,
+    vertices: &mut Vec<u32>,
+    triangles: &mut Vec<u32>,
+) -> Option<bool> {
+    vertices.push(first_spoke);
+    triangles.push(corners[first_slot as usize] / 3);
+    let (mut slot, mut spoke) = (first_slot, first_spoke);
+    loop {
+        let i = slot as usize;
+        spoke = if ahead[i] == spoke {
+            behind[i]
+        } else {
+            ahead[i]
+        };
+        vertices.push(spoke);
+        let Some(next_slot) = next(spoke, slot) else {
+            break; // open fan: reached the other boundary spoke
+        };
+        if next_slot == first_slot {
+            vertices.pop(); // closed fan: back at the first spoke
+            break;
         }
-        let closed = vertices.len() == triangles.len();
-        (triangles.len() == corners.len()).then_some(closed)
+        if triangles.len() == corners.len() {
+            return None; // cannot happen for a single fan; never loop
+        }
+        triangles.push(corners[next_slot as usize] / 3);
+        slot = next_slot;
     }
+    let closed = vertices.len() == triangles.len();
+    (triangles.len() == corners.len()).then_some(closed)
 }

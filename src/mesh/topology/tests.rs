@@ -624,10 +624,41 @@ fn random_soup() -> impl Strategy<Value = Mesh> {
     })
 }
 
+/// Every vertex's ring as the closed fans' scan finds it and as the sorted spokes do:
+/// the same vertices, triangles and closedness, or `None` from both.
+fn check_ring_paths(topo: &Topology) -> Result<(), TestCaseError> {
+    let (mut a, mut b) = (RingBuffers::default(), RingBuffers::default());
+    for v in 0..topo.vertex_count() as u32 {
+        let scanned = topo.ring_into(v, &mut a, true);
+        let sorted = topo.ring_into(v, &mut b, false);
+        prop_assert_eq!(scanned, sorted, "vertex {}", v);
+        if scanned.is_some() {
+            prop_assert_eq!(&a.vertices, &b.vertices, "vertex {}", v);
+            prop_assert_eq!(&a.triangles, &b.triangles, "vertex {}", v);
+        }
+    }
+    Ok(())
+}
+
 proptest! {
     #[test]
     fn fans_and_flags_as_defined_on_soups(m in random_soup()) {
         check_fans(&m.topology())?;
+    }
+
+    #[test]
+    fn closed_fans_scanned_as_sorted_on_soups(m in random_soup()) {
+        check_ring_paths(&m.topology())?;
+    }
+
+    #[test]
+    fn closed_fans_scanned_as_sorted_on_random_meshes(m in random_mesh()) {
+        check_ring_paths(&m.topology())?;
+    }
+
+    #[test]
+    fn closed_fans_scanned_as_sorted_on_patches(m in random_grid_patch()) {
+        check_ring_paths(&m.topology())?;
     }
 
     #[test]
