@@ -101,9 +101,13 @@ pub fn rasterise_within(
         let Some(rows) = row_span(vertices, corners, height) else {
             continue;
         };
-        tests = tests.saturating_add(box_tests(vertices, corners, rows, width));
+        let own_tests = box_tests(vertices, corners, rows, width);
+        tests = tests.saturating_add(own_tests);
         if tests > max_tests {
             return Err(OverBudget { tests });
+        }
+        if own_tests == 0 {
+            continue; // no pixel centre in its box: it would draw nothing
         }
         for bin in &mut bins[rows.0 / STRIP_ROWS..=rows.1 / STRIP_ROWS] {
             bin.push(t as u32);
@@ -192,6 +196,26 @@ struct Strip<'a> {
 impl Strip<'_> {
     fn draw(&mut self, t: u32, corners: [[f64; 3]; 3]) {
         let p = corners.map(|v| [v[0], v[1]]);
+        // The pixel centres of the bounding box within the strip first: most triangles of
+        // a scan drawn at preview size cover one centre or none, and those with none need
+        // nothing else (the same pixels as testing their area first).
+        let (xmin, xmax) = (
+            p.iter().map(|v| v[0]).fold(f64::INFINITY, f64::min),
+            p.iter().map(|v| v[0]).fold(f64::NEG_INFINITY, f64::max),
+        );
+        let (ymin, ymax) = (
+            p.iter().map(|v| v[1]).fold(f64::INFINITY, f64::min),
+            p.iter().map(|v| v[1]).fold(f64::NEG_INFINITY, f64::max),
+        );
+        let col0 = (xmin - 0.5).ceil().max(0.0);
+        let col1 = (xmax - 0.5).floor().min(self.width as f64 - 1.0);
+        let row0 = (ymin - 0.5).ceil().max(self.row0 as f64);
+        let row1 = (ymax - 0.5)
+            .floor()
+            .min((self.row0 + self.rows) as f64 - 1.0);
+        if !(col0 <= col1 && row0 <= row1) {
+            return;
+        }
         let area = edge(p[0], p[1], p[2]);
         if area == 0.0 || !area.is_finite() {
             return;
@@ -205,23 +229,6 @@ impl Strip<'_> {
             owns_edge(q[2], q[0]),
             owns_edge(q[0], q[1]),
         ];
-        let (xmin, xmax) = (
-            q.iter().map(|v| v[0]).fold(f64::INFINITY, f64::min),
-            q.iter().map(|v| v[0]).fold(f64::NEG_INFINITY, f64::max),
-        );
-        let (ymin, ymax) = (
-            q.iter().map(|v| v[1]).fold(f64::INFINITY, f64::min),
-            q.iter().map(|v| v[1]).fold(f64::NEG_INFINITY, f64::max),
-        );
-        let col0 = (xmin - 0.5).ceil().max(0.0);
-        let col1 = (xmax - 0.5).floor().min(self.width as f64 - 1.0);
-        let row0 = (ymin - 0.5).ceil().max(self.row0 as f64);
-        let row1 = (ymax - 0.5)
-            .floor()
-            .min((self.row0 + self.rows) as f64 - 1.0);
-        if col0 > col1 || row0 > row1 {
-            return;
-        }
         let z = order.map(|k| corners[k][2]);
         for row in row0 as usize..=row1 as usize {
             let y = row as f64 + 0.5;
