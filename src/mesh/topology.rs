@@ -55,6 +55,7 @@ pub use boundary::BoundaryChain;
 pub use ring::{OrderedRing, RingBuffers};
 
 use super::model::Mesh;
+use rayon::prelude::*;
 use serde::Serialize;
 use union_find::UnionFind;
 
@@ -573,27 +574,115 @@ fn build_edges(vertex_count: usize, corner_vertices: &[u32]) -> EdgeArrays {
     }
     drop(next);
 
-    let mut edges: Vec<[u32; 2]> = Vec::with_capacity(keyed.len() / 2 + 1);
-    let mut edge_offsets: Vec<u32> = Vec::with_capacity(keyed.len() / 2 + 2);
-    let mut side_list: Vec<u32> = Vec::with_capacity(keyed.len());
+    let edge_base = sort_buckets(&mut keyed, &bucket_offsets);
+    let edge_count = edge_base[edge_base.len() - 1];
+    let (edges, edge_offsets) = read_edges(&keyed, &bucket_offsets, &edge_base);
+    debug_assert_eq!(edges.len(), edge_count);
+    // The sides in bucket order, and each side's edge.
+    let side_list: Vec<u32> = keyed.par_iter().map(|&key| key as u32).collect();
+    drop(keyed);
     let mut side_edges = vec![NO_EDGE; side_count];
-    for lo in 0..vertex_count {
-        let bucket = &mut keyed[bucket_offsets[lo] as usize..bucket_offsets[lo + 1] as usize];
-        bucket.sort_unstable();
-        let mut previous_high = None;
-        for &key in bucket.iter() {
-            let (high, side) = ((key >> 32) as u32, key as u32);
-            if previous_high != Some(high) {
-                previous_high = Some(high);
-                edge_offsets.push(side_list.len() as u32);
-                edges.push([lo as u32, high]);
-            }
-            side_edges[side as usize] = (edges.len() - 1) as u32;
-            side_list.push(side);
+    for (e, run) in edge_offsets.windows(2).enumerate() {
+        for &side in &side_list[run[0] as usize..run[1] as usize] {
+            side_edges[side as usize] = e as u32;
         }
     }
-    edge_offsets.push(side_list.len() as u32);
     (edges, edge_offsets, side_list, side_edges)
+}
+
+/// Vertices per block of [`sort_buckets`] and [`read_edges`].
+const EDGE_BLOCK: usize = 4096;
+
+/// The keys of each block of [`EDGE_BLOCK`] low vertices: `keyed` cut at the blocks'
+/// first buckets.
+fn key_blocks<'k>(keyed: &'k mut [u64], bucket_offsets: &[u32]) -> Vec<&'k mut [u64]> {
+    let vertex_count = bucket_offsets.len() - 1;
+    let mut blocks = Vec::with_capacity(vertex_count.div_ceil(EDGE_BLOCK));
+    let mut rest = keyed;
+    for first in (0..vertex_count).step_by(EDGE_BLOCK) {
+        let end = (first + EDGE_BLOCK).min(vertex_count);
+        let len = (bucket_offsets[end] - bucket_offsets[first]) as usize;
+        let (block, tail) = std::mem::take(&mut rest).split_at_mut(len);
+        blocks.push(block);
+        rest = tail;
+    }
+    blocks
+}
+
+/// Sorts every bucket of `keyed` (by high vertex, then side), blocks of low vertices in
+/// parallel (each bucket on its own: the same order as sorting them one after another),
+/// and returns the first edge index of each block, with the edge count last. An edge is a
+/// run of equal high vertex in its bucket.
+fn sort_buckets(keyed: &mut [u64], bucket_offsets: &[u32]) -> Vec<usize> {
+    let vertex_count = bucket_offsets.len() - 1;
+    let counts: Vec<usize> = key_blocks(keyed, bucket_offsets)
+        .into_par_iter()
+        .enumerate()
+        .map(|(b, block)| {
+            let first = b * EDGE_BLOCK;
+            let base = bucket_offsets[first] as usize;
+            let mut edges = 0;
+            for lo in first..(first + EDGE_BLOCK).min(vertex_count) {
+                let bucket = &mut block
+                    [bucket_offsets[lo] as usize - base..bucket_offsets[lo + 1] as usize - base];
+                bucket.sort_unstable();
+                edges += bucket.chunk_by(|x, y| x >> 32 == y >> 32).count();
+            }
+            edges
+        })
+        .collect();
+    let mut base = Vec::with_capacity(counts.len() + 1);
+    let mut sum = 0;
+    base.push(0);
+    for c in counts {
+        sum += c;
+        base.push(sum);
+    }
+    base
+}
+
+/// The edges `[low, high]` in order and each edge's first position in `keyed` (its sides'
+/// offsets, with `keyed.len()` last), from sorted buckets; blocks of low vertices in
+/// parallel, each writing its own edges from `edge_base` ([`sort_buckets`]).
+fn read_edges(
+    keyed: &[u64],
+    bucket_offsets: &[u32],
+    edge_base: &[usize],
+) -> (Vec<[u32; 2]>, Vec<u32>) {
+    let vertex_count = bucket_offsets.len() - 1;
+    let edge_count = edge_base[edge_base.len() - 1];
+    let mut edges = vec![[0u32; 2]; edge_count];
+    let mut offsets = vec![0u32; edge_count + 1];
+    offsets[edge_count] = keyed.len() as u32;
+    // Each block's share of the two arrays.
+    let mut shares = Vec::with_capacity(edge_base.len() - 1);
+    let (mut edges_rest, mut offsets_rest) = (&mut edges[..], &mut offsets[..edge_count]);
+    for run in edge_base.windows(2) {
+        let len = run[1] - run[0];
+        let (e, e_tail) = std::mem::take(&mut edges_rest).split_at_mut(len);
+        let (o, o_tail) = std::mem::take(&mut offsets_rest).split_at_mut(len);
+        shares.push((e, o));
+        (edges_rest, offsets_rest) = (e_tail, o_tail);
+    }
+    shares
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(b, (edges, offsets))| {
+            let first = b * EDGE_BLOCK;
+            let mut e = 0;
+            for lo in first..(first + EDGE_BLOCK).min(vertex_count) {
+                let start = bucket_offsets[lo] as usize;
+                let bucket = &keyed[start..bucket_offsets[lo + 1] as usize];
+                let mut at = start;
+                for run in bucket.chunk_by(|x, y| x >> 32 == y >> 32) {
+                    edges[e] = [lo as u32, (run[0] >> 32) as u32];
+                    offsets[e] = at as u32;
+                    at += run.len();
+                    e += 1;
+                }
+            }
+        });
+    (edges, offsets)
 }
 
 /// Vertex → neighbours from the sorted edge list. Edges `(a, v)` with `a < v` all come

@@ -667,6 +667,85 @@ proptest! {
     }
 }
 
+/// The edges as one loop over the buckets builds them: the oracle of [`build_edges`]'s
+/// parallel blocks.
+fn build_edges_one_by_one(vertex_count: usize, corner_vertices: &[u32]) -> EdgeArrays {
+    let side_count = corner_vertices.len();
+    let ends = |s: usize| {
+        (
+            corner_vertices[s],
+            corner_vertices[next_corner(s as u32) as usize],
+        )
+    };
+    let mut counts = vec![0u32; vertex_count];
+    for s in 0..side_count {
+        let (a, b) = ends(s);
+        if a != b {
+            counts[a.min(b) as usize] += 1;
+        }
+    }
+    let bucket_offsets = offsets_from_counts(&counts);
+    drop(counts);
+    let mut next: Vec<u32> = bucket_offsets[..vertex_count].to_vec();
+    // (high vertex << 32) | side: sorting a bucket sorts by high vertex, then side.
+    let mut keyed = vec![0u64; bucket_offsets[vertex_count] as usize];
+    for s in 0..side_count {
+        let (a, b) = ends(s);
+        if a != b {
+            let lo = a.min(b) as usize;
+            keyed[next[lo] as usize] = (u64::from(a.max(b)) << 32) | s as u64;
+            next[lo] += 1;
+        }
+    }
+    drop(next);
+
+    let mut edges: Vec<[u32; 2]> = Vec::with_capacity(keyed.len() / 2 + 1);
+    let mut edge_offsets: Vec<u32> = Vec::with_capacity(keyed.len() / 2 + 2);
+    let mut side_list: Vec<u32> = Vec::with_capacity(keyed.len());
+    let mut side_edges = vec![NO_EDGE; side_count];
+    for lo in 0..vertex_count {
+        let bucket = &mut keyed[bucket_offsets[lo] as usize..bucket_offsets[lo + 1] as usize];
+        bucket.sort_unstable();
+        let mut previous_high = None;
+        for &key in bucket.iter() {
+            let (high, side) = ((key >> 32) as u32, key as u32);
+            if previous_high != Some(high) {
+                previous_high = Some(high);
+                edge_offsets.push(side_list.len() as u32);
+                edges.push([lo as u32, high]);
+            }
+            side_edges[side as usize] = (edges.len() - 1) as u32;
+            side_list.push(side);
+        }
+    }
+    edge_offsets.push(side_list.len() as u32);
+    (edges, edge_offsets, side_list, side_edges)
+}
+
+fn check_edge_arrays(m: &Mesh) -> Result<(), TestCaseError> {
+    let corners: Vec<u32> = (0..m.triangles.len())
+        .flat_map(|t| m.triangle_vertices(t))
+        .collect();
+    let n = m.positions.len();
+    prop_assert_eq!(
+        build_edges(n, &corners),
+        build_edges_one_by_one(n, &corners)
+    );
+    Ok(())
+}
+
+proptest! {
+    #[test]
+    fn edges_in_blocks_as_one_by_one_on_soups(m in random_soup()) {
+        check_edge_arrays(&m)?;
+    }
+
+    #[test]
+    fn edges_in_blocks_as_one_by_one_on_random_meshes(m in random_mesh()) {
+        check_edge_arrays(&m)?;
+    }
+}
+
 /// A patch large enough to be split between threads and blocks (over 4,096 vertices), with
 /// holes that pinch vertices, one triangle turned and one edge given a third triangle.
 #[test]
@@ -679,4 +758,5 @@ fn fans_and_flags_as_defined_on_a_large_patch() {
     assert!(topo.vertex_count() > 4096 && !topo.non_manifold_vertices().is_empty());
     assert!(topo.counts().non_manifold_edges > 0 && topo.counts().inconsistent_edges > 0);
     check_fans(&topo).unwrap();
+    crate::testing::on_threads(2, || check_edge_arrays(&m)).unwrap();
 }
