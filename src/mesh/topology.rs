@@ -546,38 +546,9 @@ type EdgeArrays = (Vec<[u32; 2]>, Vec<u32>, Vec<u32>, Vec<u32>);
 /// Returns (edges, edge→side offsets, side list, side→edge).
 fn build_edges(vertex_count: usize, corner_vertices: &[u32]) -> EdgeArrays {
     let side_count = corner_vertices.len();
-    let ends = |s: usize| {
-        (
-            corner_vertices[s],
-            corner_vertices[next_corner(s as u32) as usize],
-        )
-    };
-    let mut counts = vec![0u32; vertex_count];
-    for s in 0..side_count {
-        let (a, b) = ends(s);
-        if a != b {
-            counts[a.min(b) as usize] += 1;
-        }
-    }
-    let bucket_offsets = offsets_from_counts(&counts);
-    drop(counts);
-    let mut next: Vec<u32> = bucket_offsets[..vertex_count].to_vec();
-    // (high vertex << 32) | side: sorting a bucket sorts by high vertex, then side.
-    let mut keyed = vec![0u64; bucket_offsets[vertex_count] as usize];
-    for s in 0..side_count {
-        let (a, b) = ends(s);
-        if a != b {
-            let lo = a.min(b) as usize;
-            keyed[next[lo] as usize] = (u64::from(a.max(b)) << 32) | s as u64;
-            next[lo] += 1;
-        }
-    }
-    drop(next);
-
+    let (bucket_offsets, mut keyed) = bucket_sides(vertex_count, corner_vertices);
     let edge_base = sort_buckets(&mut keyed, &bucket_offsets);
-    let edge_count = edge_base[edge_base.len() - 1];
     let (edges, edge_offsets) = read_edges(&keyed, &bucket_offsets, &edge_base);
-    debug_assert_eq!(edges.len(), edge_count);
     // The sides in bucket order, and each side's edge.
     let side_list: Vec<u32> = keyed.par_iter().map(|&key| key as u32).collect();
     drop(keyed);
@@ -588,6 +559,39 @@ fn build_edges(vertex_count: usize, corner_vertices: &[u32]) -> EdgeArrays {
         }
     }
     (edges, edge_offsets, side_list, side_edges)
+}
+
+/// The sides (corner `s` to the next corner) bucketed by their low vertex (counting sort),
+/// each as `(high vertex << 32) | side`, unsorted within its bucket, with the buckets'
+/// offsets. Sides whose two ends are one vertex have no edge and are left out.
+fn bucket_sides(vertex_count: usize, corner_vertices: &[u32]) -> (Vec<u32>, Vec<u64>) {
+    let ends = |s: usize| {
+        (
+            corner_vertices[s],
+            corner_vertices[next_corner(s as u32) as usize],
+        )
+    };
+    let mut counts = vec![0u32; vertex_count];
+    for s in 0..corner_vertices.len() {
+        let (a, b) = ends(s);
+        if a != b {
+            counts[a.min(b) as usize] += 1;
+        }
+    }
+    let bucket_offsets = offsets_from_counts(&counts);
+    drop(counts);
+    let mut next: Vec<u32> = bucket_offsets[..vertex_count].to_vec();
+    // (high vertex << 32) | side: sorting a bucket sorts by high vertex, then side.
+    let mut keyed = vec![0u64; bucket_offsets[vertex_count] as usize];
+    for s in 0..corner_vertices.len() {
+        let (a, b) = ends(s);
+        if a != b {
+            let lo = a.min(b) as usize;
+            keyed[next[lo] as usize] = (u64::from(a.max(b)) << 32) | s as u64;
+            next[lo] += 1;
+        }
+    }
+    (bucket_offsets, keyed)
 }
 
 /// Vertices per block of [`sort_buckets`] and [`read_edges`].

@@ -667,38 +667,11 @@ proptest! {
     }
 }
 
-/// The edges as one loop over the buckets builds them: the oracle of [`build_edges`]'s
-/// parallel blocks.
+/// The edges as one loop over the sorted buckets builds them: the oracle of
+/// [`build_edges`]'s parallel blocks (the bucketing is shared).
 fn build_edges_one_by_one(vertex_count: usize, corner_vertices: &[u32]) -> EdgeArrays {
     let side_count = corner_vertices.len();
-    let ends = |s: usize| {
-        (
-            corner_vertices[s],
-            corner_vertices[next_corner(s as u32) as usize],
-        )
-    };
-    let mut counts = vec![0u32; vertex_count];
-    for s in 0..side_count {
-        let (a, b) = ends(s);
-        if a != b {
-            counts[a.min(b) as usize] += 1;
-        }
-    }
-    let bucket_offsets = offsets_from_counts(&counts);
-    drop(counts);
-    let mut next: Vec<u32> = bucket_offsets[..vertex_count].to_vec();
-    // (high vertex << 32) | side: sorting a bucket sorts by high vertex, then side.
-    let mut keyed = vec![0u64; bucket_offsets[vertex_count] as usize];
-    for s in 0..side_count {
-        let (a, b) = ends(s);
-        if a != b {
-            let lo = a.min(b) as usize;
-            keyed[next[lo] as usize] = (u64::from(a.max(b)) << 32) | s as u64;
-            next[lo] += 1;
-        }
-    }
-    drop(next);
-
+    let (bucket_offsets, mut keyed) = bucket_sides(vertex_count, corner_vertices);
     let mut edges: Vec<[u32; 2]> = Vec::with_capacity(keyed.len() / 2 + 1);
     let mut edge_offsets: Vec<u32> = Vec::with_capacity(keyed.len() / 2 + 2);
     let mut side_list: Vec<u32> = Vec::with_capacity(keyed.len());
