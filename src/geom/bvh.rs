@@ -119,6 +119,20 @@ pub struct TriangleHit {
     pub distance_squared: f64,
 }
 
+/// A [`TriangleBvh`] without its mesh ([`TriangleBvh::detach`]).
+pub struct DetachedTree {
+    /// The mesh's counts, checked when the tree is put back ([`TriangleBvh::over`]).
+    vertices: usize,
+    triangles: usize,
+    nodes: Vec<Node>,
+    order: Vec<u32>,
+    corners: Vec<[u32; 3]>,
+    planes: Vec<Plane>,
+    cones: Vec<NormalCone>,
+    budget: u32,
+    tie: f64,
+}
+
 pub struct TriangleBvh<'a> {
     mesh: &'a Mesh,
     nodes: Vec<Node>,
@@ -194,6 +208,46 @@ impl<'a> TriangleBvh<'a> {
             budget: BUDGET_PER_LEVEL * levels,
             cut_short: AtomicU64::new(0),
             tie: TIE_FRACTION * diagonal,
+        }
+    }
+
+    /// The tree without the mesh it indexes, to be kept apart from the borrow it was built
+    /// under (the decimation step builds `seam_fix`'s tree over its input beside its
+    /// collapse loop and hands it on) and put back over that mesh by [`TriangleBvh::over`].
+    pub fn detach(mut self) -> DetachedTree {
+        DetachedTree {
+            vertices: self.mesh.positions.len(),
+            triangles: self.mesh.triangles.len(),
+            nodes: std::mem::take(&mut self.nodes),
+            order: std::mem::take(&mut self.order),
+            corners: std::mem::take(&mut self.corners),
+            planes: std::mem::take(&mut self.planes),
+            cones: std::mem::take(&mut self.cones),
+            budget: self.budget,
+            tie: self.tie,
+        }
+    }
+
+    /// A detached tree over `mesh` again: the same tree, answering as it did.
+    ///
+    /// # Panics
+    /// If `mesh` does not have the vertex and triangle counts of the mesh the tree was built
+    /// over (a tree over another mesh would read out of its place).
+    pub fn over(mesh: &'a Mesh, tree: DetachedTree) -> TriangleBvh<'a> {
+        assert!(
+            mesh.positions.len() == tree.vertices && mesh.triangles.len() == tree.triangles,
+            "a detached tree is put back over the mesh it was built over"
+        );
+        TriangleBvh {
+            mesh,
+            nodes: tree.nodes,
+            order: tree.order,
+            corners: tree.corners,
+            planes: tree.planes,
+            cones: tree.cones,
+            budget: tree.budget,
+            cut_short: AtomicU64::new(0),
+            tie: tree.tie,
         }
     }
 
@@ -1081,6 +1135,34 @@ mod tests {
                 assert_eq!(hinted.distance_squared, hit.distance_squared);
             }
         }
+    }
+
+    /// A tree built on another thread, detached and put back over its mesh, answers every
+    /// search as the tree did: same triangle, point, distance and cost.
+    #[test]
+    fn a_detached_tree_put_back_answers_as_before() {
+        let mesh = uv_sphere(1.0, 12, 20);
+        let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
+        let tree = TriangleBvh::new(&mesh, all.clone());
+        let detached = std::thread::scope(|s| {
+            s.spawn(|| TriangleBvh::new(&mesh, all).detach())
+                .join()
+                .unwrap()
+        });
+        let again = TriangleBvh::over(&mesh, detached);
+        let mut r = rng(3);
+        for _ in 0..500 {
+            let p = DVec3::new(r.random(), r.random(), r.random()) * 4.0 - 2.0;
+            assert_eq!(tree.search(p, None), again.search(p, None), "{p}");
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "the mesh it was built over")]
+    fn a_detached_tree_is_not_put_over_another_mesh() {
+        let (mesh, other) = (uv_sphere(1.0, 12, 20), uv_sphere(1.0, 12, 21));
+        let tree = TriangleBvh::new(&mesh, (0..mesh.triangles.len() as u32).collect()).detach();
+        let _ = TriangleBvh::over(&other, tree);
     }
 
     /// Points of a small region, tested against the triangles whose boxes meet the region

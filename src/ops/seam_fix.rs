@@ -26,7 +26,7 @@
 //! inconsistently with geometry — which is what a jump across charts looks like.
 
 use super::texture_follow::{WedgeTriangles, charts, uv_at};
-use crate::geom::bvh::TriangleBvh;
+use crate::geom::bvh::{DetachedTree, TriangleBvh};
 use crate::mesh::{Index, Mesh, Wedge};
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
@@ -125,6 +125,31 @@ fn project(tri: [DVec3; 3], p: DVec3) -> Option<(f64, f64)> {
 /// serving, since all lie in its plane with its texture mapping), else `input` is the
 /// loaded mesh and origins index it directly.
 pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFixReport {
+    seam_fix_with(mesh, input, params, None)
+}
+
+/// Whether [`seam_fix`] against `input` reads a closest-point tree over it
+/// ([`reference_tree`]): it corrects wedges in place only on a textured reference with
+/// finite positions.
+pub fn reads_tree_over(input: &Mesh) -> bool {
+    input.has_texcoords() && input.positions.iter().all(|p| p.is_finite())
+}
+
+/// The closest-point tree over every triangle of `input` that [`seam_fix`] reads, for
+/// [`seam_fix_with`] (the runner builds it while the decimation before runs). Positions
+/// must be finite ([`reads_tree_over`]).
+pub fn reference_tree(input: &Mesh) -> TriangleBvh<'_> {
+    TriangleBvh::new(input, (0..input.triangles.len() as u32).collect())
+}
+
+/// [`seam_fix`] with [`reference_tree`] over `input` built already, when `tree` is given
+/// (detached; it must have been built over `input`).
+pub fn seam_fix_with(
+    mesh: &mut Mesh,
+    input: &Mesh,
+    params: &SeamFixParams,
+    tree: Option<DetachedTree>,
+) -> SeamFixReport {
     let mut report = SeamFixReport {
         triangles: mesh.triangles.len(),
         ..Default::default()
@@ -133,7 +158,7 @@ pub fn seam_fix(mesh: &mut Mesh, input: &Mesh, params: &SeamFixParams) -> SeamFi
         return report;
     }
     let origins = Origins::new(input);
-    let shared = SharedFix::new(mesh, input, &origins);
+    let shared = SharedFix::new(mesh, input, &origins, tree);
     let detect = Detect::new(input, params);
     let mut decisions = vec![Decision::Undecided; mesh.wedges.len()];
     let mut splits: Vec<(usize, usize, DVec2)> = Vec::new();
@@ -243,13 +268,21 @@ struct SharedFix<'a> {
 }
 
 impl<'a> SharedFix<'a> {
-    fn new(mesh: &'a Mesh, input: &'a Mesh, origins: &'a Origins) -> Self {
-        let finite = input.positions.iter().all(|p| p.is_finite());
-        // The charts are sequential; they are made beside the tree, whose build is parallel.
-        let (charts, bvh) = rayon::join(
-            || charts(input),
-            || finite.then(|| TriangleBvh::new(input, (0..input.triangles.len() as u32).collect())),
-        );
+    fn new(
+        mesh: &'a Mesh,
+        input: &'a Mesh,
+        origins: &'a Origins,
+        tree: Option<DetachedTree>,
+    ) -> Self {
+        let (charts, bvh) = match tree {
+            Some(tree) => (charts(input), Some(TriangleBvh::over(input, tree))),
+            // The charts are sequential; they are made beside the tree, whose build is
+            // parallel.
+            None => rayon::join(
+                || charts(input),
+                || reads_tree_over(input).then(|| reference_tree(input)),
+            ),
+        };
         SharedFix {
             mesh,
             input,
@@ -414,5 +447,30 @@ mod tests {
         let fixed = m.wedge_texcoord(m.triangles[5][1]).unwrap();
         let want = input.wedge_texcoord(input.triangles[5][1]).unwrap();
         assert!((fixed - want).length() < 1e-12);
+    }
+
+    /// The tree over the reference built before (as the decimation step does, beside its
+    /// collapse loop) repairs exactly as the tree `seam_fix` builds itself, wedges
+    /// corrected in place through it included.
+    #[test]
+    fn a_tree_built_before_repairs_the_same() {
+        let input = grid(6, 6);
+        let mut m = input.clone();
+        for (i, p) in m.positions.iter_mut().enumerate() {
+            p.z += 0.01 * (i % 3) as f64;
+        }
+        for t in [5, 17, 30] {
+            let tc = m.wedges[m.triangles[t][1] as usize].texcoord.unwrap() as usize;
+            m.texcoords[tc] += DVec2::new(0.4, 0.1);
+        }
+        let mut own = m.clone();
+        let own_report = seam_fix(&mut own, &input, &SeamFixParams::default());
+        assert!(own_report.corners_shared > 0, "{own_report:?}");
+        assert!(reads_tree_over(&input));
+        let tree =
+            std::thread::scope(|s| s.spawn(|| reference_tree(&input).detach()).join().unwrap());
+        let given_report = seam_fix_with(&mut m, &input, &SeamFixParams::default(), Some(tree));
+        assert_eq!(given_report, own_report);
+        assert_eq!(m, own);
     }
 }

@@ -7,11 +7,12 @@
 //! keeps the context between them.
 
 use super::Step;
+use crate::geom::bvh::DetachedTree;
 use crate::mesh::Mesh;
 use crate::metrics::TextureCache;
 use crate::ops;
 use serde_json::Value;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// One recipe step. `run` changes the mesh in place and returns the step's figures (any
 /// serialisable report, see [`figures`]) or a one-line error, which fails the run.
@@ -68,6 +69,9 @@ pub struct StepContext {
     /// along the eyebrows of Lee Perry-Smith. Triangle origins always index the loaded mesh;
     /// `seam_fix` maps them through the snapshot's own origins when a crop changed them.
     pub seam_reference: Option<Arc<Mesh>>,
+    /// `seam_fix`'s closest-point tree over the seam reference, when the step that made
+    /// that reference built it already (`decimate`, beside its collapse loop).
+    pub seam_tree: Option<DetachedTree>,
     /// The connectivity a `relax` or `fair` step leaves for the next one (see
     /// [`RecipeStep::uses_fairing_connectivity`]).
     pub fairing: Option<ops::fair::Connectivity>,
@@ -92,11 +96,19 @@ impl StepContext {
 
     /// A step replaced the mesh; `old` is the mesh it started from. It becomes the seam
     /// reference when there is one and a step ran before (no copy is made: the replacing
-    /// step needed it whole until its output was built anyway).
-    pub fn replaced(&mut self, old: Mesh) {
-        if self.changed && self.seam_reference.is_some() {
-            self.seam_reference = Some(Arc::new(old));
+    /// step needed it whole until its output was built anyway), with `seam_tree`, `seam_fix`'s
+    /// tree over it, if the step built that ([`StepContext::replacing_makes_seam_reference`]).
+    pub fn replaced(&mut self, old: Arc<Mesh>, seam_tree: Option<DetachedTree>) {
+        if self.replacing_makes_seam_reference() {
+            self.seam_reference = Some(old);
+            self.seam_tree = seam_tree;
         }
+    }
+
+    /// Whether the mesh a replacing step starts from becomes the seam reference
+    /// ([`StepContext::replaced`]).
+    pub fn replacing_makes_seam_reference(&self) -> bool {
+        self.changed && self.seam_reference.is_some()
     }
 }
 
@@ -145,8 +157,28 @@ impl RecipeStep for ops::crop::CropParams {
 
 impl RecipeStep for ops::decimate::DecimateParams {
     fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
-        let (out, report) = ops::decimate::decimate(mesh, self).map_err(|e| e.to_string())?;
-        cx.replaced(std::mem::replace(mesh, out));
+        let input = Arc::new(std::mem::take(mesh));
+        // When the input becomes the seam reference, `seam_fix`'s tree over it is built
+        // beside the collapse loop, where a core is idle (on a 400k-triangle scan ~28 ms of
+        // `seam_fix` on two cores otherwise; docs/face-scan.md).
+        let seam_tree = OnceLock::new();
+        let builds_tree =
+            cx.replacing_makes_seam_reference() && ops::seam_fix::reads_tree_over(&input);
+        let beside = || {
+            if builds_tree {
+                seam_tree.get_or_init(|| ops::seam_fix::reference_tree(&input).detach());
+            }
+        };
+        let (out, report) = match ops::decimate::decimate_beside(&input, self, &beside) {
+            Ok(done) => done,
+            Err(e) => {
+                // The mesh as it was (the only handle: nothing was cloned).
+                *mesh = Arc::unwrap_or_clone(input);
+                return Err(e.to_string());
+            }
+        };
+        *mesh = out;
+        cx.replaced(input, seam_tree.into_inner());
         Ok(figures(report))
     }
 
@@ -161,7 +193,7 @@ impl RecipeStep for ops::remesh::RemeshParams {
     fn run(&self, mesh: &mut Mesh, cx: &mut StepContext) -> Result<Value, String> {
         let (out, report) =
             ops::remesh::remesh_with(mesh, self, &mut cx.textures).map_err(|e| e.to_string())?;
-        cx.replaced(std::mem::replace(mesh, out));
+        cx.replaced(Arc::new(std::mem::replace(mesh, out)), None);
         Ok(figures(report))
     }
 }
@@ -172,7 +204,10 @@ impl RecipeStep for ops::seam_fix::SeamFixParams {
             .seam_reference
             .as_deref()
             .ok_or("seam_fix needs the loaded input mesh")?;
-        Ok(figures(ops::seam_fix::seam_fix(mesh, input, self)))
+        let tree = cx.seam_tree.take();
+        Ok(figures(ops::seam_fix::seam_fix_with(
+            mesh, input, self, tree,
+        )))
     }
 
     fn needs_seam_reference(&self) -> bool {

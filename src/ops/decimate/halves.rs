@@ -27,7 +27,8 @@
 //! deterministic, and with one thread the halves simply run one after the other.
 
 use super::{
-    CollapseInput, DecimateParams, DecimateReport, Halves, decimate_input, decimate_with_origin,
+    CollapseInput, DecimateParams, DecimateReport, Halves, decimate_input,
+    decimate_with_origin_beside,
 };
 use crate::mesh::Mesh;
 use crate::mesh::model::{Index, Wedge};
@@ -317,8 +318,14 @@ pub struct HalvesReport {
 }
 
 /// Decimates `mesh` in halves, then as a whole (see the module comment). `None` when the
-/// cut could not be stitched exactly; the caller then decimates in one pass.
-pub fn run(mesh: &Mesh, params: &DecimateParams, target: usize) -> Option<(Mesh, DecimateReport)> {
+/// cut could not be stitched exactly; the caller then decimates in one pass. `beside` runs
+/// beside the final pass's collapse loop ([`super::decimate_beside`]).
+pub fn run(
+    mesh: &Mesh,
+    params: &DecimateParams,
+    target: usize,
+    beside: &(dyn Fn() + Sync),
+) -> Option<(Mesh, DecimateReport)> {
     let first_half = split(mesh)?;
     let cut = cut_positions(mesh, &first_half)?;
     let stage = (target as f64 * STAGE_FACTOR).round() as usize;
@@ -353,7 +360,7 @@ pub fn run(mesh: &Mesh, params: &DecimateParams, target: usize) -> Option<(Mesh,
     let stitched = stitch(a, &b, &cut)?;
     drop(b);
     let (mut out, mut report) =
-        decimate_with_origin(&stitched, &half_params(target), Some(mesh)).ok()?;
+        decimate_with_origin_beside(&stitched, &half_params(target), Some(mesh), beside).ok()?;
     drop(stitched);
     // Origins index `mesh`; the step's output indexes what `mesh`'s own origins do.
     for o in &mut out.triangle_origins {
@@ -499,7 +506,8 @@ mod tests {
         for keep in [true, false] {
             let half = part(&m, &side, keep);
             let copy = half.mesh.clone();
-            let (expected, expected_report) = decimate_with_origin(&copy, &params, None).unwrap();
+            let (expected, expected_report) =
+                crate::ops::decimate::decimate_with_origin(&copy, &params, None).unwrap();
             let (out, report) = decimate_input(half, &params).unwrap();
             assert!(report.collapses > 0);
             assert_eq!(out, expected);

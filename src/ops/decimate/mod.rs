@@ -465,7 +465,20 @@ pub fn decimate(
     mesh: &Mesh,
     params: &DecimateParams,
 ) -> Result<(Mesh, DecimateReport), DecimateError> {
-    decimate_with_origin(mesh, params, None)
+    decimate_beside(mesh, params, &|| ())
+}
+
+/// [`decimate`], running `beside` where the decimation leaves a core idle: beside the
+/// sequential collapse loop of a one-pass decimation, or of the final pass after the halves
+/// (`rayon::join`, so it has run when this returns, unless the parameters are refused or the
+/// mesh is empty). `beside` may run again if a decimation in halves falls back to one pass;
+/// what it does must not depend on the decimation.
+pub fn decimate_beside(
+    mesh: &Mesh,
+    params: &DecimateParams,
+    beside: &(dyn Fn() + Sync),
+) -> Result<(Mesh, DecimateReport), DecimateError> {
+    decimate_with_origin_beside(mesh, params, None, beside)
 }
 
 /// [`decimate`] of a mesh whose `triangle_origins` index `origin` (an earlier decimation's
@@ -476,6 +489,16 @@ pub fn decimate_with_origin(
     params: &DecimateParams,
     origin: Option<&Mesh>,
 ) -> Result<(Mesh, DecimateReport), DecimateError> {
+    decimate_with_origin_beside(mesh, params, origin, &|| ())
+}
+
+/// [`decimate_with_origin`] with work `beside` its collapse loop ([`decimate_beside`]).
+pub(crate) fn decimate_with_origin_beside(
+    mesh: &Mesh,
+    params: &DecimateParams,
+    origin: Option<&Mesh>,
+    beside: &(dyn Fn() + Sync),
+) -> Result<(Mesh, DecimateReport), DecimateError> {
     params.validate().map_err(DecimateError::Params)?;
     if mesh.triangles.is_empty() {
         return Err(DecimateError::Empty);
@@ -484,7 +507,7 @@ pub fn decimate_with_origin(
     let has_n = !mesh.normals.is_empty();
     let in_halves = match (origin, halves::wanted(mesh, params)) {
         (None, Some(target)) => {
-            let done = halves::run(mesh, params, target);
+            let done = halves::run(mesh, params, target, beside);
             if done.is_none() {
                 tracing::debug!("the halves' cut could not be matched exactly: one pass instead");
             }
@@ -492,12 +515,15 @@ pub fn decimate_with_origin(
         }
         _ => None,
     };
-    let (mut out, mut report) = match (in_halves, has_uv, has_n) {
-        (Some(done), _, _) => done,
-        (None, true, true) => run::<5, &Mesh>(mesh, params, origin),
-        (None, true, false) => run::<2, &Mesh>(mesh, params, origin),
-        (None, false, true) => run::<3, &Mesh>(mesh, params, origin),
-        (None, false, false) => run::<0, &Mesh>(mesh, params, origin),
+    let one_pass = || match (has_uv, has_n) {
+        (true, true) => run::<5, &Mesh>(mesh, params, origin),
+        (true, false) => run::<2, &Mesh>(mesh, params, origin),
+        (false, true) => run::<3, &Mesh>(mesh, params, origin),
+        (false, false) => run::<0, &Mesh>(mesh, params, origin),
+    };
+    let (mut out, mut report) = match in_halves {
+        Some(done) => done,
+        None => rayon::join(one_pass, beside).0,
     };
     if out.triangle_origins.len() != out.triangles.len() {
         out.triangle_origins = (0..out.triangles.len())

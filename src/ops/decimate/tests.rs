@@ -303,6 +303,33 @@ fn halves_auto_applies_from_its_size_and_three_times_the_target() {
     assert_eq!(halves::wanted(&mesh_of(400_000), &off), None);
 }
 
+/// Work beside the collapse loop has run when the decimation returns, in one pass and in
+/// halves, and the output is the plain decimation's.
+#[test]
+fn work_beside_the_loop_has_run_when_the_decimation_returns() {
+    let m = subdivide(&uv_sphere(1.0, 24, 48));
+    for halves in [super::Halves::Off, super::Halves::On] {
+        let p = DecimateParams {
+            halves,
+            ..params(Method::EdgeCollapse, 600)
+        };
+        let runs = std::sync::atomic::AtomicUsize::new(0);
+        let beside = || {
+            runs.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        };
+        let (out, report) = decimate_beside(&m, &p, &beside).unwrap();
+        assert_eq!(report.halves.is_some(), halves == super::Halves::On);
+        assert_eq!(
+            runs.load(std::sync::atomic::Ordering::SeqCst),
+            1,
+            "{halves:?}"
+        );
+        let (plain, plain_report) = decimate(&m, &p).unwrap();
+        assert_eq!(out, plain);
+        assert_eq!(report.collapses, plain_report.collapses);
+    }
+}
+
 /// On a small closed mesh the halves keep it closed and reach the target; the cut's
 /// vertices are found in both halves and stitched.
 #[test]
