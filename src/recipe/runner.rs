@@ -3,7 +3,7 @@
 //! [`RecipeStep`]s; what they hand each other is the
 //! [`StepContext`].
 
-use super::step::{self, RecipeStep, StepContext};
+use super::step::{self, IdleCore, RecipeStep, StepContext};
 use super::{Recipe, Step};
 use crate::mesh::{InputLimits, Mesh};
 use crate::metrics::TextureCache;
@@ -241,7 +241,12 @@ impl StepHooks for MetricsHooks<'_, '_, '_> {
         let crop_follows = self.recipe.steps[index..]
             .iter()
             .any(|s| s.as_recipe_step().removes_surface());
-        if self.schedule.can_prepare_early() && step.leaves_a_core_idle(mesh) && !crop_follows {
+        let room = match step.idle_core(mesh, cx) {
+            IdleCore::Mostly => true,
+            IdleCore::Briefly => self.schedule.only_samples_left(),
+            IdleCore::No => false,
+        };
+        if self.schedule.can_prepare_early() && room && !crop_follows {
             self.schedule.prepare_beside_step(self.scope);
         }
     }
