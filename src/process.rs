@@ -16,6 +16,7 @@ use crate::report::{
     FileHash, InputReport, MeshCounts, OutputReport, PreviewReport, RecipeReport, Report,
     combined_hash,
 };
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -413,17 +414,23 @@ fn write_outputs(
 ) -> Result<(Vec<FileHash>, Option<PreviewReport>), ProcessError> {
     let stem = output_stem(input);
     let staging = Staging::new(out_dir)?;
-    let Written { supporting, meshes } = write_mesh(mesh, recipe, &staging.0, &stem)?;
-    let preview = preview.and_then(|preview| {
-        let path = staging.0.join(preview_file_name(&stem));
-        match crate::preview::write_png(&preview.image, &path) {
-            Ok(()) => Some((path, preview.figures)),
-            Err(e) => {
-                tracing::warn!(error = %e, "no preview");
-                None
-            }
-        }
-    });
+    // The mesh's text and the preview's PNG are each written on one core: side by side.
+    let (written, preview) = rayon::join(
+        || write_mesh(mesh, recipe, &staging.0, &stem),
+        || {
+            preview.and_then(|preview| {
+                let path = staging.0.join(preview_file_name(&stem));
+                match crate::preview::write_png(&preview.image, &path) {
+                    Ok(()) => Some((path, preview.figures)),
+                    Err(e) => {
+                        tracing::warn!(error = %e, "no preview");
+                        None
+                    }
+                }
+            })
+        },
+    );
+    let Written { supporting, meshes } = written?;
     let mut files = supporting;
     files.extend(preview.iter().map(|(path, _)| path.clone()));
     files.extend(meshes);
@@ -441,7 +448,7 @@ fn write_outputs(
         None => None,
     };
     let output_files = published
-        .iter()
+        .par_iter()
         .map(|p| FileHash::of(p).map_err(|e| output_error(p, e)))
         .collect::<Result<Vec<_>, _>>()?;
     Ok((output_files, preview))
