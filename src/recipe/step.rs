@@ -278,3 +278,51 @@ impl RecipeStep for ops::smooth::SmoothParams {
         true
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::grid;
+    use crate::ops::decimate::DecimateParams;
+    use crate::ops::seam_fix::SeamFixParams;
+
+    /// A bumpy textured grid of 1,800 triangles.
+    fn scan() -> Mesh {
+        let mut m = grid(30, 30);
+        for p in &mut m.positions {
+            p.z = 0.3 * ((p.x * 0.4).sin() * (p.y * 0.3).cos());
+        }
+        m
+    }
+
+    /// A decimation after another step makes its input the seam reference and hands
+    /// `seam_fix` the tree over it, which `seam_fix` takes (and, with it, leaves a core idle
+    /// briefly); a decimation as the first step leaves the input the reference, treeless.
+    #[test]
+    fn a_decimation_after_another_step_hands_seam_fix_its_tree() {
+        let input = scan();
+        let decimate = DecimateParams {
+            target_faces: Some(400),
+            ..Default::default()
+        };
+        let seam_fix = SeamFixParams::default();
+        let mut cx = StepContext::new(Some(Arc::new(input.clone())), TextureCache::new());
+        let mut first = input.clone();
+        decimate.run(&mut first, &mut cx).unwrap();
+        assert!(cx.seam_tree.is_none());
+        assert_eq!(seam_fix.idle_core(&first, &cx), IdleCore::No);
+
+        cx.changed = true;
+        let mut before = input.clone();
+        before.positions[40].z += 0.01;
+        let mut after = before.clone();
+        decimate.run(&mut after, &mut cx).unwrap();
+        assert_eq!(after.triangles.len(), 400);
+        let reference = cx.seam_reference.clone().unwrap();
+        assert_eq!(reference.positions, before.positions);
+        assert!(cx.seam_tree.is_some());
+        assert_eq!(seam_fix.idle_core(&after, &cx), IdleCore::Briefly);
+        seam_fix.run(&mut after, &mut cx).unwrap();
+        assert!(cx.seam_tree.is_none());
+    }
+}
