@@ -90,7 +90,7 @@ struct Near {
 }
 
 /// A node: a box, and either two children (`count == 0`, at `first` and `first + 1`) or a
-/// run of `count` triangles starting at `first` in [`TriangleBvh::order`].
+/// run of `count` triangles starting at `first` in [`DetachedTree::order`].
 #[derive(Debug, Clone, Copy)]
 struct Node {
     min: [f32; 3],
@@ -119,22 +119,12 @@ pub struct TriangleHit {
     pub distance_squared: f64,
 }
 
-/// A [`TriangleBvh`] without its mesh ([`TriangleBvh::detach`]).
+/// A [`TriangleBvh`] without its mesh ([`TriangleBvh::detach`]): everything the tree holds.
+#[derive(Default)]
 pub struct DetachedTree {
-    /// The mesh's counts, checked when the tree is put back ([`TriangleBvh::over`]).
+    /// The indexed mesh's counts, checked when the tree is put back ([`TriangleBvh::over`]).
     vertices: usize,
     triangles: usize,
-    nodes: Vec<Node>,
-    order: Vec<u32>,
-    corners: Vec<[u32; 3]>,
-    planes: Vec<Plane>,
-    cones: Vec<NormalCone>,
-    budget: u32,
-    tie: f64,
-}
-
-pub struct TriangleBvh<'a> {
-    mesh: &'a Mesh,
     nodes: Vec<Node>,
     /// Mesh triangle indices in leaf order.
     order: Vec<u32>,
@@ -148,10 +138,15 @@ pub struct TriangleBvh<'a> {
     cones: Vec<NormalCone>,
     /// Nodes one search may visit.
     budget: u32,
-    /// Searches that stopped at the budget.
-    cut_short: AtomicU64,
     /// Distances within this of each other are equal ([`TriangleBvh::facing`]).
     tie: f64,
+}
+
+pub struct TriangleBvh<'a> {
+    mesh: &'a Mesh,
+    tree: DetachedTree,
+    /// Searches that stopped at the budget.
+    cut_short: AtomicU64,
 }
 
 /// Two distances to the surface closer than this fraction of the indexed surface's
@@ -200,14 +195,18 @@ impl<'a> TriangleBvh<'a> {
         .length();
         TriangleBvh {
             mesh,
-            nodes,
-            order,
-            corners,
-            planes: Vec::new(),
-            cones: Vec::new(),
-            budget: BUDGET_PER_LEVEL * levels,
+            tree: DetachedTree {
+                vertices: mesh.positions.len(),
+                triangles: mesh.triangles.len(),
+                nodes,
+                order,
+                corners,
+                planes: Vec::new(),
+                cones: Vec::new(),
+                budget: BUDGET_PER_LEVEL * levels,
+                tie: TIE_FRACTION * diagonal,
+            },
             cut_short: AtomicU64::new(0),
-            tie: TIE_FRACTION * diagonal,
         }
     }
 
@@ -215,17 +214,7 @@ impl<'a> TriangleBvh<'a> {
     /// under (the decimation step builds `seam_fix`'s tree over its input beside its
     /// collapse loop and hands it on) and put back over that mesh by [`TriangleBvh::over`].
     pub fn detach(mut self) -> DetachedTree {
-        DetachedTree {
-            vertices: self.mesh.positions.len(),
-            triangles: self.mesh.triangles.len(),
-            nodes: std::mem::take(&mut self.nodes),
-            order: std::mem::take(&mut self.order),
-            corners: std::mem::take(&mut self.corners),
-            planes: std::mem::take(&mut self.planes),
-            cones: std::mem::take(&mut self.cones),
-            budget: self.budget,
-            tie: self.tie,
-        }
+        std::mem::take(&mut self.tree)
     }
 
     /// A detached tree over `mesh` again: the same tree, answering as it did.
@@ -240,14 +229,8 @@ impl<'a> TriangleBvh<'a> {
         );
         TriangleBvh {
             mesh,
-            nodes: tree.nodes,
-            order: tree.order,
-            corners: tree.corners,
-            planes: tree.planes,
-            cones: tree.cones,
-            budget: tree.budget,
+            tree,
             cut_short: AtomicU64::new(0),
-            tie: tree.tie,
         }
     }
 
@@ -259,38 +242,39 @@ impl<'a> TriangleBvh<'a> {
     /// answer for 97 % of them); the metrics' and the fairing's trees, over 400,000-triangle
     /// scans, keep their memory instead (the whole face-scan run measured no faster).
     pub fn with_planes(mesh: &'a Mesh, triangles: Vec<u32>) -> TriangleBvh<'a> {
-        let mut tree = TriangleBvh::new(mesh, triangles);
-        tree.planes = tree
+        let mut index = TriangleBvh::new(mesh, triangles);
+        index.tree.planes = index
+            .tree
             .corners
             .par_iter()
             .map(|t| Plane::of(t.map(|v| mesh.positions[v as usize])))
             .collect();
-        tree
+        index
     }
 
     /// The tree with each node's cone of normals (16 bytes per node), for
     /// [`TriangleBvh::all_facing_within`].
     pub fn with_normal_cones(mut self) -> TriangleBvh<'a> {
-        self.cones = normal_cones(self.mesh, &self.nodes, &self.corners);
+        self.tree.cones = normal_cones(self.mesh, &self.tree.nodes, &self.tree.corners);
         self
     }
 
     pub fn is_empty(&self) -> bool {
-        self.order.is_empty()
+        self.tree.order.is_empty()
     }
 
     /// Triangles indexed.
     pub fn len(&self) -> usize {
-        self.order.len()
+        self.tree.order.len()
     }
 
     /// Bytes held by the index (not counting the mesh).
     pub fn heap_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<Node>()
-            + self.order.capacity() * 4
-            + self.corners.capacity() * 12
-            + self.planes.capacity() * std::mem::size_of::<Plane>()
-            + self.cones.capacity() * std::mem::size_of::<NormalCone>()
+        self.tree.nodes.capacity() * std::mem::size_of::<Node>()
+            + self.tree.order.capacity() * 4
+            + self.tree.corners.capacity() * 12
+            + self.tree.planes.capacity() * std::mem::size_of::<Plane>()
+            + self.tree.cones.capacity() * std::mem::size_of::<NormalCone>()
     }
 
     /// The closest point of the indexed surface to `p`. `start`, if given, is a candidate
@@ -322,7 +306,7 @@ impl<'a> TriangleBvh<'a> {
         // they existed. One function with both kinds of leaf loop (a test of the planes'
         // presence per triangle, or per leaf) made the fairing's step on face400k, a
         // million searches, 14 ms slower.
-        if self.planes.is_empty() {
+        if self.tree.planes.is_empty() {
             self.traverse::<false>(p, start)
         } else {
             self.traverse::<true>(p, start)
@@ -332,7 +316,7 @@ impl<'a> TriangleBvh<'a> {
     /// [`TriangleBvh::search`], with the leaf triangles' planes read when `PLANES`.
     fn traverse<const PLANES: bool>(&self, p: DVec3, start: Option<TriangleHit>) -> Search {
         let mut cost = QueryCost::default();
-        if self.order.is_empty() {
+        if self.tree.order.is_empty() {
             return Search {
                 hit: None,
                 complete: true,
@@ -347,7 +331,7 @@ impl<'a> TriangleBvh<'a> {
         let mut top = 0;
         let mut node = 0u32;
         loop {
-            if cost.nodes >= self.budget {
+            if cost.nodes >= self.tree.budget {
                 self.cut_short.fetch_add(1, Ordering::Relaxed);
                 return Search {
                     hit: best,
@@ -356,11 +340,11 @@ impl<'a> TriangleBvh<'a> {
                 };
             }
             cost.nodes += 1;
-            let n = &self.nodes[node as usize];
+            let n = &self.tree.nodes[node as usize];
             if n.count > 0 {
                 let first = n.first as usize;
                 for i in first..first + n.count as usize {
-                    if PLANES && self.planes[i].farther_than(p, best_d2) {
+                    if PLANES && self.tree.planes[i].farther_than(p, best_d2) {
                         continue;
                     }
                     cost.triangles += 1;
@@ -372,8 +356,8 @@ impl<'a> TriangleBvh<'a> {
                 }
             } else {
                 let (l, r) = (n.first, n.first + 1);
-                let dl = box_distance_squared(&self.nodes[l as usize], p);
-                let dr = box_distance_squared(&self.nodes[r as usize], p);
+                let dl = box_distance_squared(&self.tree.nodes[l as usize], p);
+                let dr = box_distance_squared(&self.tree.nodes[r as usize], p);
                 let (near, d_near, far, d_far) = if dl <= dr {
                     (l, dl, r, dr)
                 } else {
@@ -399,7 +383,7 @@ impl<'a> TriangleBvh<'a> {
                 }
                 top -= 1;
                 node = stack[top];
-                if box_distance_squared(&self.nodes[node as usize], p) < best_d2 {
+                if box_distance_squared(&self.tree.nodes[node as usize], p) < best_d2 {
                     break;
                 }
             }
@@ -418,7 +402,7 @@ impl<'a> TriangleBvh<'a> {
     ) -> bool {
         out.items.clear();
         self.each_in_box(lo, hi, u32::MAX, |i| {
-            let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+            let [a, b, c] = self.tree.corners[i].map(|v| self.mesh.positions[v as usize]);
             let (min, max) = (a.min(b).min(c), a.max(b).max(c));
             if !meets(min, max, lo, hi) {
                 return true;
@@ -446,7 +430,7 @@ impl<'a> TriangleBvh<'a> {
         visit: impl FnMut(usize) -> bool,
     ) -> bool {
         let enter = |n: usize| {
-            let n = &self.nodes[n];
+            let n = &self.tree.nodes[n];
             let min = DVec3::from_array(n.min.map(f64::from));
             let max = DVec3::from_array(n.max.map(f64::from));
             meets(min, max, lo, hi)
@@ -464,7 +448,7 @@ impl<'a> TriangleBvh<'a> {
         mut enter: impl FnMut(usize) -> bool,
         mut visit: impl FnMut(usize) -> bool,
     ) -> bool {
-        if self.order.is_empty() {
+        if self.tree.order.is_empty() {
             return true;
         }
         let mut stack = [0u32; MAX_DEPTH];
@@ -480,7 +464,7 @@ impl<'a> TriangleBvh<'a> {
             if !enter(node) {
                 continue;
             }
-            let n = &self.nodes[node];
+            let n = &self.tree.nodes[node];
             if n.count == 0 {
                 stack[top] = n.first;
                 stack[top + 1] = n.first + 1;
@@ -535,7 +519,7 @@ impl<'a> TriangleBvh<'a> {
 
     /// Nodes one search may visit: [`BUDGET_PER_LEVEL`] per level of this tree.
     pub fn budget(&self) -> u32 {
-        self.budget
+        self.tree.budget
     }
 
     /// Searches so far that stopped at the budget (their answers are upper bounds).
@@ -546,10 +530,10 @@ impl<'a> TriangleBvh<'a> {
     /// The closest point to `p` of the triangle at `i` in leaf order.
     #[inline]
     fn leaf_hit(&self, i: usize, p: DVec3) -> TriangleHit {
-        let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+        let [a, b, c] = self.tree.corners[i].map(|v| self.mesh.positions[v as usize]);
         let (point, bary) = closest_on_triangle(p, a, b, c);
         TriangleHit {
-            triangle: self.order[i],
+            triangle: self.tree.order[i],
             point,
             bary,
             distance_squared: point.distance_squared(p),
@@ -572,7 +556,7 @@ impl<'a> TriangleBvh<'a> {
         if hit.bary.min_element() > 0.0 {
             return hit.triangle;
         }
-        let reach = hit.distance_squared.sqrt() + self.tie;
+        let reach = hit.distance_squared.sqrt() + self.tree.tie;
         let score = |t: u32| {
             self.mesh
                 .triangle_cross(t as usize)
@@ -583,7 +567,7 @@ impl<'a> TriangleBvh<'a> {
         self.each_in_box(
             p - DVec3::splat(reach),
             p + DVec3::splat(reach),
-            self.budget,
+            self.tree.budget,
             |i| {
                 let near = self.leaf_hit(i, p);
                 if near.triangle != hit.triangle && near.distance_squared.sqrt() <= reach {
@@ -600,7 +584,7 @@ impl<'a> TriangleBvh<'a> {
     }
 
     /// Whether every indexed triangle whose closest point to `p` is within `√d2` (and
-    /// [`TriangleBvh::tie`]) faces the way of `normal` (`normal · m > 0`, `m` its
+    /// [`DetachedTree::tie`]) faces the way of `normal` (`normal · m > 0`, `m` its
     /// unnormalised normal) or has no area. Then whichever of them is closest to `p` faces
     /// that way, without finding it: a node is passed over when its box is farther or its
     /// cone of normals lies within 90° of `normal`, and only a triangle turned the other
@@ -608,17 +592,18 @@ impl<'a> TriangleBvh<'a> {
     /// search passes its budget, or without cones ([`TriangleBvh::with_normal_cones`]).
     pub fn all_facing_within(&self, p: DVec3, d2: f64, normal: DVec3) -> bool {
         let unit = normal.normalize_or_zero();
-        if self.cones.is_empty() || unit == DVec3::ZERO || self.order.is_empty() {
+        if self.tree.cones.is_empty() || unit == DVec3::ZERO || self.tree.order.is_empty() {
             return false;
         }
-        let reach = d2.sqrt() + self.tie;
+        let reach = d2.sqrt() + self.tree.tie;
         let reach2 = reach * reach;
         let enter = |node: usize| {
-            box_distance_squared(&self.nodes[node], p) <= reach2 && !self.cones[node].faces(unit)
+            box_distance_squared(&self.tree.nodes[node], p) <= reach2
+                && !self.tree.cones[node].faces(unit)
         };
         // A triangle turned the other way and near enough stops the walk.
-        self.each_entered(self.budget, enter, |i| {
-            let [a, b, c] = self.corners[i].map(|v| self.mesh.positions[v as usize]);
+        self.each_entered(self.tree.budget, enter, |i| {
+            let [a, b, c] = self.tree.corners[i].map(|v| self.mesh.positions[v as usize]);
             let m = (b - a).cross(c - a);
             m == DVec3::ZERO || normal.dot(m) > 0.0 || self.leaf_hit(i, p).distance_squared > reach2
         })
@@ -855,8 +840,8 @@ impl Drop for TriangleBvh<'_> {
         if cut_short > 0 {
             tracing::warn!(
                 searches = cut_short,
-                triangles = self.order.len(),
-                budget_nodes = self.budget,
+                triangles = self.tree.order.len(),
+                budget_nodes = self.tree.budget,
                 "closest-point searches stopped at their budget: the triangles overlap so that \
                  no box separates them; those answers are the nearest triangle found, an upper \
                  bound on the distance"
@@ -1222,9 +1207,9 @@ mod tests {
 
     /// The leaf-order range of each node's triangles.
     fn ranges(bvh: &TriangleBvh) -> Vec<std::ops::Range<usize>> {
-        let mut out = vec![0..0; bvh.nodes.len()];
-        for i in (0..bvh.nodes.len()).rev() {
-            let n = bvh.nodes[i];
+        let mut out = vec![0..0; bvh.tree.nodes.len()];
+        for i in (0..bvh.tree.nodes.len()).rev() {
+            let n = bvh.tree.nodes[i];
             let first = n.first as usize;
             out[i] = if n.count > 0 {
                 first..first + n.count as usize
@@ -1247,12 +1232,12 @@ mod tests {
                 let n = DVec3::new(r.random(), r.random(), r.random()) * 2.0 - 1.0;
                 let n = n.normalize();
                 for (node, range) in ranges.iter().enumerate() {
-                    if !bvh.cones[node].faces(n) {
+                    if !bvh.tree.cones[node].faces(n) {
                         continue;
                     }
                     vouched += 1;
                     for i in range.clone() {
-                        let m = mesh.triangle_cross(bvh.order[i] as usize);
+                        let m = mesh.triangle_cross(bvh.tree.order[i] as usize);
                         assert!(n.dot(m) > 0.0, "node {node}: {m} against {n}");
                     }
                 }
@@ -1370,11 +1355,12 @@ mod tests {
             on_threads(threads, || {
                 let bvh = TriangleBvh::new(&mesh, all.clone());
                 let nodes: Vec<_> = bvh
+                    .tree
                     .nodes
                     .iter()
                     .map(|n| (n.min, n.max, n.first, n.count))
                     .collect();
-                (nodes, bvh.order.clone())
+                (nodes, bvh.tree.order.clone())
             })
         };
         let (one, two) = (build_on(1), build_on(2));
@@ -1383,17 +1369,17 @@ mod tests {
         let mut seen = vec![0u32; n];
         let mut stack = vec![0usize];
         while let Some(i) = stack.pop() {
-            let node = bvh.nodes[i];
+            let node = bvh.tree.nodes[i];
             if node.count > 0 {
                 assert!(node.count as usize <= LEAF_SIZE);
                 for j in node.first..node.first + node.count {
-                    seen[bvh.order[j as usize] as usize] += 1;
+                    seen[bvh.tree.order[j as usize] as usize] += 1;
                 }
                 continue;
             }
             let (l, r) = (
-                bvh.nodes[node.first as usize],
-                bvh.nodes[node.first as usize + 1],
+                bvh.tree.nodes[node.first as usize],
+                bvh.tree.nodes[node.first as usize + 1],
             );
             for k in 0..3 {
                 assert_eq!(node.min[k], l.min[k].min(r.min[k]));
@@ -1432,11 +1418,11 @@ mod tests {
                 .collect();
             sorted(&mut items);
             let order: Vec<u32> = items.iter().map(|&(t, _)| t).collect();
-            assert_eq!(bvh.order, order);
-            for node in bvh.nodes.iter().filter(|n| n.count > 0) {
+            assert_eq!(bvh.tree.order, order);
+            for node in bvh.tree.nodes.iter().filter(|n| n.count > 0) {
                 let (mut min, mut max) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
                 for i in node.first..node.first + node.count {
-                    for p in mesh.triangle_positions(bvh.order[i as usize] as usize) {
+                    for p in mesh.triangle_positions(bvh.tree.order[i as usize] as usize) {
                         (min, max) = (min.min(p), max.max(p));
                     }
                 }
@@ -1458,11 +1444,11 @@ mod tests {
         }
         let all: Vec<u32> = (0..mesh.triangles.len() as u32).collect();
         let bvh = TriangleBvh::new(&mesh, all);
-        for n in &bvh.nodes {
+        for n in &bvh.tree.nodes {
             let leaf = n.count > 0;
             if leaf {
                 for i in n.first..n.first + n.count {
-                    for v in bvh.corners[i as usize] {
+                    for v in bvh.tree.corners[i as usize] {
                         let p = mesh.positions[v as usize].to_array();
                         for ((lo, hi), x) in n.min.iter().zip(n.max).zip(p) {
                             assert!(*lo as f64 <= x && x <= hi as f64);
