@@ -136,7 +136,7 @@ pub fn reads_tree_over(input: &Mesh) -> bool {
 }
 
 /// The closest-point tree over every triangle of `input` that [`seam_fix`] reads, for
-/// [`seam_fix_with`] (the runner builds it while the decimation before runs). Positions
+/// [`seam_fix_with`] (the decimation step builds it beside its collapse loop). Positions
 /// must be finite ([`reads_tree_over`]).
 pub fn reference_tree(input: &Mesh) -> TriangleBvh<'_> {
     TriangleBvh::new(input, (0..input.triangles.len() as u32).collect())
