@@ -255,7 +255,8 @@ impl Step {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct MetricsSpec {
-    /// Compute the final metrics (they cost about a second on a 400k-triangle scan).
+    /// Compute the final metrics: the largest part of the run after the steps on a large scan
+    /// (their cost is measured in docs/face-scan.md).
     pub enabled: bool,
     /// Surface samples per direction.
     pub samples: usize,
