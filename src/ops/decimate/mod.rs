@@ -468,10 +468,10 @@ pub fn decimate(
     decimate_beside(mesh, params, &|| ())
 }
 
-/// [`decimate`], running `beside` where the decimation leaves a core idle: beside the
-/// sequential collapse loop of a one-pass decimation, or of the final pass after the halves
-/// (`rayon::join`, so it has run when this returns, unless the parameters are refused or the
-/// mesh is empty). `beside` may run again if a decimation in halves falls back to one pass;
+/// [`decimate`], running `beside` where the decimation leaves a core idle: in a
+/// `rayon::join` with a one-pass decimation, or with the final pass after the halves, whose
+/// set-up is parallel and whose collapse loop, most of it, is sequential. It has run when
+/// this returns, unless the parameters are refused or the mesh is empty. `beside` may run again if a decimation in halves falls back to one pass;
 /// what it does must not depend on the decimation.
 pub fn decimate_beside(
     mesh: &Mesh,
